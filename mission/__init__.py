@@ -1,0 +1,1 @@
+"""Source-seeking strategies and runners. Not implemented yet: see issue 6."""

@@ -1,0 +1,1 @@
+"""windseek command-line entry point."""
