@@ -1,0 +1,554 @@
+"""Flight modes of the built-in autopilot: arming, take-off, hold, offboard, waypoint mission,
+land and return-to-launch. Plain synchronous Python run at the mode rate (50 Hz); it writes
+the setpoint vector read by the numba controller (``sitl.controller``).
+
+NED world frame, SI units, yaw in rad (0 = north, positive clockwise seen from above).
+Behaviour follows PX4 where the two can be compared: take-off climbs at 1.5 m/s and then
+holds, land descends at 0.7 m/s and disarms 2 s after touchdown, offboard needs a setpoint
+stream and falls back to hold when it stops, a mission ends in hold unless it lands.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum, IntEnum
+
+import numpy as np
+
+from sitl.controller import (
+    F_ACC,
+    F_ATT,
+    F_OFF,
+    F_POS,
+    F_VEL,
+    F_YAW,
+    N_SP,
+    SP_ACC,
+    SP_ATT,
+    SP_FLAGS,
+    SP_POS,
+    SP_THRUST,
+    SP_VEL,
+    SP_YAW,
+    SP_YAWRATE,
+)
+
+F_IDLE = 64  # rotors at armed idle (on the ground, not taking off)
+
+
+class Mode(Enum):
+    """Autopilot modes (PX4 names in the values)."""
+
+    HOLD = "AUTO.LOITER"
+    POSITION = "POSCTL"
+    TAKEOFF = "AUTO.TAKEOFF"
+    OFFBOARD = "OFFBOARD"
+    MISSION = "AUTO.MISSION"
+    LAND = "AUTO.LAND"
+    RTL = "AUTO.RTL"
+
+
+class LandedState(IntEnum):
+    """MAV_LANDED_STATE values."""
+
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+class ItemKind(Enum):
+    TAKEOFF = "takeoff"
+    WAYPOINT = "waypoint"
+    LOITER_TIME = "loiter_time"
+    LAND = "land"
+    RTL = "rtl"
+    CHANGE_SPEED = "change_speed"
+
+
+@dataclass
+class MissionItem:
+    """One mission item in NED. ``position_ned`` NaN components mean "keep current"."""
+
+    kind: ItemKind
+    position_ned: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    acceptance_radius_m: float = 1.0
+    hold_s: float = 0.0
+    speed_m_s: float = math.nan
+    yaw_rad: float = math.nan
+
+
+@dataclass
+class FlightConfig:
+    """Mode-level limits and behaviour (PX4 parameter names in comments)."""
+
+    takeoff_altitude_m: float = 10.0  # MIS_TAKEOFF_ALT
+    takeoff_speed_m_s: float = 1.5  # MPC_TKO_SPEED
+    land_speed_m_s: float = 0.7  # MPC_LAND_SPEED
+    cruise_speed_m_s: float = 5.0  # MPC_XY_CRUISE
+    max_accel_m_s2: float = 2.0  # trajectory acceleration
+    rtl_altitude_m: float = 15.0  # RTL_RETURN_ALT (above home)
+    offboard_timeout_s: float = 1.0  # COM_OF_LOSS_T
+    disarm_after_land_s: float = 2.0  # COM_DISARM_LAND
+    max_lead_m: float = 4.0  # how far the moving setpoint may run ahead of the vehicle
+
+
+class Trajectory:
+    """A setpoint that travels from its current point toward a target at a speed, with
+    acceleration and deceleration limits, so waypoints are approached without overshoot."""
+
+    def __init__(self, start: np.ndarray) -> None:
+        self.pos = np.array(start, dtype=float)
+        self.target = self.pos.copy()
+        self.speed = 0.0
+        self.vel = np.zeros(3)
+
+    def retarget(self, target: np.ndarray) -> None:
+        self.target = np.array(target, dtype=float)
+
+    def reset(self, pos: np.ndarray) -> None:
+        self.pos = np.array(pos, dtype=float)
+        self.target = self.pos.copy()
+        self.speed = 0.0
+        self.vel[:] = 0.0
+
+    def update(self, dt: float, cruise: float, accel: float, vehicle_pos: np.ndarray, lead: float) -> None:
+        d = self.target - self.pos
+        dist = float(np.linalg.norm(d))
+        if dist < 1e-6:
+            self.pos = self.target.copy()
+            self.speed = 0.0
+            self.vel[:] = 0.0
+            return
+        v_allow = min(cruise, math.sqrt(2.0 * accel * dist))
+        if float(np.linalg.norm(self.pos - vehicle_pos)) > lead:
+            v_allow = min(v_allow, 0.5 * cruise)
+        self.speed = min(self.speed + accel * dt, v_allow)
+        step = min(self.speed * dt, dist)
+        u = d / dist
+        self.pos = self.pos + u * step
+        self.vel = u * self.speed
+
+
+@dataclass
+class StatusEvent:
+    t: float
+    severity: int  # MAV_SEVERITY: 0 emergency .. 6 info
+    text: str
+
+
+class FlightController:
+    """Mode logic. Call :meth:`update` at the mode rate with the true state."""
+
+    def __init__(self, config: FlightConfig | None = None, home_yaw: float = 0.0) -> None:
+        self.config = config or FlightConfig()
+        self.sp = np.zeros(N_SP)
+        self.sp[SP_FLAGS] = F_OFF
+        self.armed = False
+        self.mode = Mode.HOLD
+        self.landed_state = LandedState.ON_GROUND
+        self.home = np.zeros(3)
+        self.events: list[StatusEvent] = []
+        self.mission: list[MissionItem] = []
+        self.mission_index = 0
+        self.mission_reached: list[int] = []  # indices reached since last drain
+        self.failsafe = False
+        self.crashed = False
+        self._traj = Trajectory(np.zeros(3))
+        self._yaw = home_yaw
+        self._t = 0.0
+        self._pos = np.zeros(3)
+        self._vel = np.zeros(3)
+        self._on_ground = True
+        self._ground_since = 0.0
+        self._hold_until = math.nan
+        self._phase = ""
+        self._speed = self.config.cruise_speed_m_s
+        self._offb_last = -math.inf
+        self._offb_sp = np.zeros(N_SP)
+        self.prearm_checks: list[Callable[[], str | None]] = []
+        self.on_mode_change: list[Callable[[Mode], None]] = []
+
+    # ------------------------------------------------------------------ commands
+    def say(self, text: str, severity: int = 6) -> None:
+        self.events.append(StatusEvent(self._t, severity, text))
+
+    def prearm_failure(self) -> str | None:
+        """First failing pre-arm check, or None if the vehicle may arm."""
+        if self.crashed:
+            return "vehicle crashed"
+        if not self._on_ground:
+            return "not landed"
+        for check in self.prearm_checks:
+            reason = check()
+            if reason:
+                return reason
+        return None
+
+    def arm(self) -> tuple[bool, str]:
+        if self.armed:
+            return True, "already armed"
+        reason = self.prearm_failure()
+        if reason:
+            self.say(f"Preflight Fail: {reason}", 3)
+            return False, reason
+        self.armed = True
+        self.home = self._pos.copy()
+        self._traj.reset(self._pos)
+        self.say("Armed by external command")
+        if self.mode in (Mode.LAND, Mode.RTL):
+            self._set_mode(Mode.HOLD)
+        return True, "armed"
+
+    def disarm(self, force: bool = False) -> tuple[bool, str]:
+        if not self.armed:
+            return True, "already disarmed"
+        if not self._on_ground and not force:
+            return False, "not landed (use force to disarm in air)"
+        self.armed = False
+        self.say("Disarmed by external command" if not force else "Disarmed (forced)")
+        self._set_mode(Mode.HOLD)
+        return True, "disarmed"
+
+    def takeoff(self, altitude_m: float | None = None) -> tuple[bool, str]:
+        alt = self.config.takeoff_altitude_m if altitude_m is None else float(altitude_m)
+        if not (math.isfinite(alt) and 0.5 <= alt <= 500.0):
+            return False, f"takeoff altitude {alt} outside [0.5, 500] m"
+        if not self.armed:
+            return False, "not armed"
+        self._takeoff_target = np.array([self._pos[0], self._pos[1], self.home[2] - alt])
+        self._traj.reset(self._pos)
+        self._traj.retarget(self._takeoff_target)
+        self._set_mode(Mode.TAKEOFF)
+        return True, "taking off"
+
+    def land(self) -> tuple[bool, str]:
+        if not self.armed:
+            return False, "not armed"
+        self._begin_land()
+        return True, "landing"
+
+    def rtl(self) -> tuple[bool, str]:
+        if not self.armed:
+            return False, "not armed"
+        self._phase = "climb"
+        alt = max(-self._pos[2] + self.home[2], self.config.rtl_altitude_m)
+        self._traj.reset(self._pos)
+        self._traj.retarget(np.array([self._pos[0], self._pos[1], self.home[2] - alt]))
+        self._set_mode(Mode.RTL)
+        return True, "returning"
+
+    def hold(self) -> tuple[bool, str]:
+        self._enter_hold()
+        return True, "holding"
+
+    def reposition(self, pos_ned: np.ndarray, yaw: float = math.nan) -> tuple[bool, str]:
+        """Fly to a point and hold there (MAV_CMD_DO_REPOSITION)."""
+        if not self.armed or self._on_ground:
+            return False, "not flying"
+        p = np.where(np.isfinite(pos_ned), pos_ned, self._traj.pos)
+        self._traj.retarget(p)
+        if math.isfinite(yaw):
+            self._yaw = yaw
+        self.mode = Mode.HOLD
+        self._notify(Mode.HOLD)
+        return True, "repositioning"
+
+    def set_speed(self, speed_m_s: float) -> tuple[bool, str]:
+        if not (math.isfinite(speed_m_s) and 0.1 <= speed_m_s <= 20.0):
+            return False, f"speed {speed_m_s} outside [0.1, 20] m/s"
+        self._speed = float(speed_m_s)
+        return True, "speed set"
+
+    def set_mission(self, items: list[MissionItem]) -> None:
+        self.mission = list(items)
+        self.mission_index = 0
+
+    def start_mission(self, index: int | None = None) -> tuple[bool, str]:
+        if not self.mission:
+            return False, "no mission"
+        if not self.armed:
+            return False, "not armed"
+        if index is not None:
+            if not 0 <= index < len(self.mission):
+                return False, f"mission index {index} outside [0, {len(self.mission) - 1}]"
+            self.mission_index = index
+        if self.mission_index >= len(self.mission):
+            self.mission_index = 0
+        self._traj.reset(self._pos)
+        self._start_item()
+        self._set_mode(Mode.MISSION)
+        return True, "mission started"
+
+    def offboard_setpoint(
+        self,
+        t: float,
+        pos: np.ndarray | None = None,
+        vel: np.ndarray | None = None,
+        acc: np.ndarray | None = None,
+        yaw: float | None = None,
+        yaw_rate: float | None = None,
+        attitude: np.ndarray | None = None,
+        thrust: float | None = None,
+    ) -> None:
+        """Store an offboard setpoint (NED, SI). Components left None are not controlled."""
+        sp = np.zeros(N_SP)
+        flags = 0
+        if attitude is not None:
+            sp[SP_ATT:SP_ATT + 4] = attitude
+            sp[SP_THRUST] = 0.5 if thrust is None else thrust
+            flags |= F_ATT
+        if pos is not None:
+            sp[SP_POS:SP_POS + 3] = pos
+            flags |= F_POS
+        if vel is not None:
+            sp[SP_VEL:SP_VEL + 3] = vel
+            flags |= F_VEL
+        if acc is not None:
+            sp[SP_ACC:SP_ACC + 3] = acc
+            flags |= F_ACC
+        if yaw is not None:
+            sp[SP_YAW] = yaw
+            flags |= F_YAW
+        if yaw_rate is not None:
+            sp[SP_YAWRATE] = yaw_rate
+        if flags & (F_POS | F_VEL | F_ACC | F_ATT) == 0:
+            return
+        sp[SP_FLAGS] = flags
+        self._offb_sp = sp
+        self._offb_last = t
+
+    def offboard_active(self, t: float) -> bool:
+        return t - self._offb_last <= self.config.offboard_timeout_s
+
+    def set_mode(self, mode: Mode) -> tuple[bool, str]:
+        """Mode change as requested by a command (DO_SET_MODE)."""
+        if mode == Mode.OFFBOARD:
+            if not self.offboard_active(self._t):
+                return False, "no offboard setpoint stream"
+            self._set_mode(Mode.OFFBOARD)
+            return True, "offboard"
+        if mode == Mode.TAKEOFF:
+            return self.takeoff()
+        if mode == Mode.LAND:
+            return self.land() if self.armed else (self._set_mode(Mode.LAND) or (True, "land"))
+        if mode == Mode.RTL:
+            return self.rtl() if self.armed else (self._set_mode(Mode.RTL) or (True, "rtl"))
+        if mode == Mode.MISSION:
+            if not self.armed:
+                self._set_mode(Mode.MISSION)
+                return True, "mission (waiting to arm)"
+            return self.start_mission()
+        if mode in (Mode.HOLD, Mode.POSITION):
+            self._enter_hold(mode)
+            return True, mode.value
+        return False, f"unsupported mode {mode}"
+
+    # ------------------------------------------------------------------ update
+    def update(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool, dt: float) -> np.ndarray:
+        """Advance the mode logic to time t with the true state; returns the setpoint vector."""
+        self._t = t
+        self._pos = x[0:3].copy()
+        self._vel = x[3:6].copy()
+        if on_ground and not self._on_ground:
+            self._ground_since = t
+        self._on_ground = on_ground
+        if crashed and not self.crashed:
+            self.crashed = True
+            self.failsafe = True
+            self.say("Crash detected: motors stopped", 0)
+            self.armed = False
+        q = x[6:10]
+        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
+        sp = self.sp
+        if not self.armed:
+            sp[:] = 0.0
+            sp[SP_FLAGS] = F_OFF
+            self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+            return sp
+        cfg = self.config
+        mode = self.mode
+        if mode == Mode.OFFBOARD:
+            if not self.offboard_active(t):
+                self.say("Offboard setpoint stream lost: switching to Hold", 4)
+                self._enter_hold()
+            else:
+                sp[:] = self._offb_sp
+                self._traj.reset(self._pos)
+                self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+                if on_ground and int(sp[SP_FLAGS]) & (F_POS | F_VEL) and not self._wants_climb(sp):
+                    sp[SP_FLAGS] = F_IDLE
+                return sp
+        mode = self.mode
+        speed = self._speed
+        if mode == Mode.TAKEOFF:
+            speed = cfg.takeoff_speed_m_s
+            if abs(self._pos[2] - self._takeoff_target[2]) < 0.3:
+                self.say("Takeoff complete")
+                self._enter_hold()
+        elif mode == Mode.LAND:
+            self._land_step(t)
+        elif mode == Mode.RTL:
+            self._rtl_step(t)
+        elif mode == Mode.MISSION:
+            speed = self._mission_step(t)
+        if not self.armed:
+            sp[:] = 0.0
+            sp[SP_FLAGS] = F_OFF
+            return sp
+        if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
+            sp[:] = 0.0
+            sp[SP_POS:SP_POS + 3] = self._traj.pos
+            sp[SP_VEL + 2] = cfg.land_speed_m_s
+            sp[SP_YAW] = self._yaw
+            sp[SP_FLAGS] = F_POS | F_VEL | F_YAW
+            # Only the horizontal position is held: zero the vertical position error.
+            sp[SP_POS + 2] = self._pos[2]
+            self.landed_state = LandedState.LANDING if not on_ground else LandedState.ON_GROUND
+            return sp
+        if self.mode == Mode.TAKEOFF:
+            speed = cfg.takeoff_speed_m_s
+        self._traj.update(dt, speed, cfg.max_accel_m_s2, self._pos, cfg.max_lead_m)
+        sp[:] = 0.0
+        sp[SP_POS:SP_POS + 3] = self._traj.pos
+        sp[SP_VEL:SP_VEL + 3] = self._traj.vel
+        sp[SP_YAW] = self._yaw if math.isfinite(self._yaw) else cur_yaw
+        flags = F_POS | F_VEL | F_YAW
+        if on_ground and self._traj.pos[2] > self._pos[2] - 0.2 and self.mode != Mode.TAKEOFF:
+            # Armed on the ground with nowhere to climb to: spin at idle.
+            flags = F_IDLE
+            self.landed_state = LandedState.ON_GROUND
+        elif self.mode == Mode.TAKEOFF:
+            self.landed_state = LandedState.TAKEOFF
+        else:
+            self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+        sp[SP_FLAGS] = flags
+        return sp
+
+    # ------------------------------------------------------------------ internals
+    def _wants_climb(self, sp: np.ndarray) -> bool:
+        flags = int(sp[SP_FLAGS])
+        if flags & F_POS and sp[SP_POS + 2] < self._pos[2] - 0.3:
+            return True
+        return bool(flags & F_VEL and sp[SP_VEL + 2] < -0.1)
+
+    def _notify(self, mode: Mode) -> None:
+        for cb in self.on_mode_change:
+            cb(mode)
+
+    def _set_mode(self, mode: Mode) -> None:
+        if mode != self.mode:
+            self.mode = mode
+            self._notify(mode)
+
+    def _enter_hold(self, mode: Mode = Mode.HOLD) -> None:
+        # Hold where the vehicle would come to rest: brake from the current velocity.
+        stop = self._pos + self._vel * 0.5
+        if self._on_ground:
+            stop = self._pos.copy()
+        self._traj.reset(self._pos)
+        self._traj.retarget(stop)
+        self._set_mode(mode)
+
+    def _begin_land(self) -> None:
+        self._phase = "descend"
+        self._traj.reset(self._pos)
+        self._land_touch = math.nan
+        self._set_mode(Mode.LAND)
+
+    def _land_step(self, t: float) -> None:
+        if self._on_ground:
+            if not math.isfinite(self._land_touch):
+                self._land_touch = t
+                self.say("Landing detected")
+            elif t - self._land_touch >= self.config.disarm_after_land_s:
+                self.armed = False
+                self.say("Disarmed by landing")
+                self._set_mode(Mode.HOLD)
+        else:
+            self._land_touch = math.nan
+
+    def _rtl_step(self, t: float) -> None:
+        if self._phase == "climb" and np.linalg.norm(self._traj.pos - self._traj.target) < 0.05:
+            self._phase = "return"
+            self._traj.retarget(np.array([self.home[0], self.home[1], self._traj.target[2]]))
+            self.say("RTL: return at altitude")
+        elif self._phase == "return" and np.linalg.norm(self._pos[:2] - self.home[:2]) < 1.0:
+            self.say("RTL: land at home")
+            self._begin_land()
+            self.mode = Mode.RTL
+        elif self._phase == "descend":
+            self._land_step(t)
+
+    def _start_item(self) -> None:
+        self._hold_until = math.nan
+        while self.mission_index < len(self.mission):
+            item = self.mission[self.mission_index]
+            if item.kind == ItemKind.CHANGE_SPEED:
+                if math.isfinite(item.speed_m_s) and item.speed_m_s > 0:
+                    self._speed = item.speed_m_s
+                self.mission_reached.append(self.mission_index)
+                self.mission_index += 1
+                continue
+            target = self._item_target(item)
+            if item.kind == ItemKind.LAND:
+                self._traj.retarget(np.array([target[0], target[1], self._traj.pos[2]]))
+                self._phase = "approach"
+            elif item.kind == ItemKind.RTL:
+                self.mission_reached.append(self.mission_index)
+                self.rtl()
+                return
+            else:
+                self._traj.retarget(target)
+            if math.isfinite(item.yaw_rad):
+                self._yaw = item.yaw_rad
+            elif item.kind in (ItemKind.WAYPOINT, ItemKind.LOITER_TIME):
+                d = target[:2] - self._pos[:2]
+                if np.hypot(*d) > 2.0:
+                    self._yaw = math.atan2(d[1], d[0])
+            return
+
+    def _item_target(self, item: MissionItem) -> np.ndarray:
+        p = item.position_ned.copy()
+        ref = self._traj.target
+        for i in range(3):
+            if not math.isfinite(p[i]):
+                p[i] = ref[i]
+        if item.kind == ItemKind.TAKEOFF and not math.isfinite(item.position_ned[2]):
+            p[2] = self.home[2] - self.config.takeoff_altitude_m
+        if item.kind == ItemKind.TAKEOFF:
+            p[0], p[1] = self._pos[0], self._pos[1]
+        return p
+
+    def _mission_step(self, t: float) -> float:
+        if self.mission_index >= len(self.mission):
+            return self._speed
+        item = self.mission[self.mission_index]
+        speed = self.config.takeoff_speed_m_s if item.kind == ItemKind.TAKEOFF else self._speed
+        if item.kind == ItemKind.LAND:
+            near = np.linalg.norm(self._pos[:2] - self._traj.target[:2])
+            if near < max(item.acceptance_radius_m, 0.5):
+                self.mission_reached.append(self.mission_index)
+                self.mission_index += 1
+                self._begin_land()
+            return speed
+        reached = np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3)
+        reached = reached and np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3
+        if item.kind == ItemKind.TAKEOFF:
+            reached = abs(self._pos[2] - self._traj.target[2]) < 0.5 and not self._on_ground
+        if reached:
+            hold = item.hold_s
+            if not math.isfinite(self._hold_until):
+                self._hold_until = t + hold
+            if t >= self._hold_until:
+                self.mission_reached.append(self.mission_index)
+                self.mission_index += 1
+                if self.mission_index >= len(self.mission):
+                    self.say("Mission finished, loitering")
+                    self._enter_hold()
+                else:
+                    self._start_item()
+        return speed

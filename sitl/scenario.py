@@ -1,0 +1,432 @@
+"""Scenario files: TOML a user can copy and edit. Built-ins live in ``sitl/scenarios/``.
+
+Every error names the offending field and the allowed values. The format is documented in
+the README ("Scenario file format"); ``sitl/scenarios/paper-s2.toml`` is a full example.
+Conventions: SI units, NED world frame, wind as air-mass velocity in NED, or as a speed and
+a *from*-direction in degrees (0 = from north, 90 = from east).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sitl.controller import ControllerGains
+from sitl.flight_modes import FlightConfig, ItemKind, MissionItem
+from sitl.sensors import (
+    BaroConfig,
+    EscConfig,
+    GnssConfig,
+    HomeConfig,
+    ImuConfig,
+    MagConfig,
+    SensorSuiteConfig,
+    TemperatureConfig,
+)
+from sitl.wind import KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
+
+TURBULENCE_LEVELS = {"none": 0.0, "low": 0.5, "moderate": 1.0, "high": 2.0}
+
+
+class ScenarioError(ValueError):
+    """A scenario file or value is invalid; the message names the field."""
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    position_ned: tuple[float, float, float]
+    hold_s: float = 0.0
+    acceptance_radius_m: float = 1.0
+    speed_m_s: float = math.nan
+
+
+@dataclass(frozen=True)
+class Route:
+    """The commanded path flown by ``windseek sim``: take-off (unless airborne), waypoints, land."""
+
+    takeoff_altitude_m: float = 10.0
+    cruise_speed_m_s: float = 3.0
+    waypoints: tuple[Waypoint, ...] = ()
+    land: bool = False
+
+
+@dataclass(frozen=True)
+class Start:
+    position_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw_deg: float = 0.0
+    airborne: bool = False
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str = ""
+    duration_s: float = 60.0
+    seed: int = 0
+    vehicle: str = "nasa-quad"
+    physics_rate_hz: float = 500.0
+    mode_rate_hz: float = 50.0
+    wind: SteadyWind = field(default_factory=lambda: SteadyWind(velocity_ned=(0.0, 0.0, 0.0)))
+    turbulence: KaimalTurbulence | None = None
+    start: Start = field(default_factory=Start)
+    route: Route = field(default_factory=Route)
+    sensors: SensorSuiteConfig = field(default_factory=SensorSuiteConfig)
+    gains: ControllerGains = field(default_factory=ControllerGains)
+    flight: FlightConfig = field(default_factory=FlightConfig)
+    plume: dict[str, Any] | None = None  # raw [plume] table, parsed by sitl.plume_config
+    source_path: str = ""
+
+    def with_seed(self, seed: int) -> Scenario:
+        return replace(self, seed=int(seed))
+
+    def with_duration(self, duration_s: float) -> Scenario:
+        _num("duration_s", duration_s, 0.01, 86400.0)
+        return replace(self, duration_s=float(duration_s))
+
+    def mission_items(self) -> list[MissionItem]:
+        """The route as autopilot mission items (NED)."""
+        items: list[MissionItem] = []
+        if not self.start.airborne:
+            items.append(
+                MissionItem(
+                    ItemKind.TAKEOFF,
+                    np.array([math.nan, math.nan, -self.route.takeoff_altitude_m]),
+                    acceptance_radius_m=0.5,
+                )
+            )
+        for wp in self.route.waypoints:
+            if math.isfinite(wp.speed_m_s):
+                items.append(MissionItem(ItemKind.CHANGE_SPEED, speed_m_s=wp.speed_m_s))
+            items.append(
+                MissionItem(
+                    ItemKind.WAYPOINT,
+                    np.array(wp.position_ned, dtype=float),
+                    acceptance_radius_m=wp.acceptance_radius_m,
+                    hold_s=wp.hold_s,
+                )
+            )
+        if self.route.land:
+            items.append(MissionItem(ItemKind.LAND))
+        return items
+
+
+# --------------------------------------------------------------------------- parsing helpers
+def _num(name: str, value: Any, lo: float, hi: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ScenarioError(f"{name}: expected a number in [{lo}, {hi}], got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise ScenarioError(f"{name} = {value!r}: allowed range is [{lo}, {hi}]")
+    return v
+
+
+def _vec3(name: str, value: Any, lim: float = 1e5) -> tuple[float, float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise ScenarioError(f"{name}: expected 3 numbers [north, east, down], got {value!r}")
+    return tuple(_num(f"{name}[{i}]", v, -lim, lim) for i, v in enumerate(value))  # type: ignore[return-value]
+
+
+def _table(name: str, value: Any, allowed: set[str]) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"[{name}]: expected a table, got {value!r}")
+    unknown = set(value) - allowed
+    if unknown:
+        raise ScenarioError(
+            f"[{name}]: unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}"
+        )
+    return value
+
+
+def _bool(name: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ScenarioError(f"{name}: expected true or false, got {value!r}")
+    return value
+
+
+def _wind_vector(name: str, tbl: dict[str, Any]) -> tuple[float, float, float]:
+    has_vec = "velocity_ned" in tbl
+    has_dir = "speed_m_s" in tbl or "from_deg" in tbl
+    if has_vec == has_dir:
+        raise ScenarioError(
+            f"{name}: give either velocity_ned = [n, e, d] (air-mass velocity, m/s) "
+            "or speed_m_s and from_deg (from-direction, degrees)"
+        )
+    if has_vec:
+        return _vec3(f"{name}.velocity_ned", tbl["velocity_ned"], 100.0)
+    speed = _num(f"{name}.speed_m_s", tbl.get("speed_m_s"), 0.0, 100.0)
+    from_deg = _num(f"{name}.from_deg", tbl.get("from_deg"), -360.0, 360.0)
+    vert = _num(f"{name}.vertical_m_s", tbl.get("vertical_m_s", 0.0), -50.0, 50.0)
+    return velocity_from_speed_direction(speed, from_deg, vert)
+
+
+def _parse_wind(tbl: dict[str, Any]) -> SteadyWind:
+    _table(
+        "wind",
+        tbl,
+        {
+            "velocity_ned", "speed_m_s", "from_deg", "vertical_m_s", "profile",
+            "reference_height_m", "roughness_length_m", "changes", "direction_steps",
+        },
+    )  # fmt: skip
+    profile = tbl.get("profile", "uniform")
+    if profile not in ("uniform", "log"):
+        raise ScenarioError(f"wind.profile = {profile!r}: allowed values are 'uniform', 'log'")
+    kw = {
+        "profile": profile,
+        "reference_height_m": _num("wind.reference_height_m", tbl.get("reference_height_m", 10.0), 0.1, 1000.0),
+        "roughness_length_m": _num("wind.roughness_length_m", tbl.get("roughness_length_m", 0.1), 1e-4, 5.0),
+    }
+    if "direction_steps" in tbl:
+        ds = _table("wind.direction_steps", tbl["direction_steps"], {"speed_m_s", "from_deg", "interval_s"})
+        froms = ds.get("from_deg")
+        if not isinstance(froms, list) or not froms:
+            raise ScenarioError("wind.direction_steps.from_deg: expected a non-empty list of degrees")
+        return SteadyWind.direction_steps(
+            _num("wind.direction_steps.speed_m_s", ds.get("speed_m_s"), 0.0, 100.0),
+            [_num(f"wind.direction_steps.from_deg[{i}]", f, -360, 360) for i, f in enumerate(froms)],
+            _num("wind.direction_steps.interval_s", ds.get("interval_s"), 0.1, 1e5),
+            **kw,
+        )
+    base = _wind_vector("wind", {k: v for k, v in tbl.items() if k in {"velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"}})
+    changes = []
+    raw = tbl.get("changes", [])
+    if not isinstance(raw, list):
+        raise ScenarioError("wind.changes: expected a list of {t_s = ..., velocity_ned = [...]} tables")
+    for i, ch in enumerate(raw):
+        name = f"wind.changes[{i}]"
+        ch = _table(name, ch, {"t_s", "velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"})
+        t = _num(f"{name}.t_s", ch.get("t_s"), 0.0, 1e6)
+        changes.append(WindChange(t, _wind_vector(name, {k: v for k, v in ch.items() if k != "t_s"})))
+    try:
+        return SteadyWind(velocity_ned=base, changes=tuple(changes), **kw)
+    except ValueError as e:
+        raise ScenarioError(f"wind: {e}") from None
+
+
+def _parse_turbulence(tbl: dict[str, Any], wind: SteadyWind, duration: float) -> KaimalTurbulence | None:
+    _table(
+        "turbulence",
+        tbl,
+        {"model", "level", "sigma_u_m_s", "intensity", "intensity_class", "height_m", "taylor", "sample_rate_hz"},
+    )
+    model = tbl.get("model", "kaimal")
+    if model not in ("kaimal", "none"):
+        raise ScenarioError(f"turbulence.model = {model!r}: allowed values are 'kaimal', 'none'")
+    if model == "none":
+        return None
+    given = [k for k in ("level", "sigma_u_m_s", "intensity", "intensity_class") if k in tbl]
+    if len(given) != 1:
+        raise ScenarioError(
+            "turbulence: give exactly one of level ('low', 'moderate', 'high'), sigma_u_m_s, "
+            f"intensity, intensity_class ('A', 'B', 'C'); got {given or 'none'}"
+        )
+    u_mean = math.hypot(wind.velocity_ned[0], wind.velocity_ned[1])
+    kw = {
+        "height_m": _num("turbulence.height_m", tbl.get("height_m", 10.0), 0.5, 500.0),
+        "taylor": _bool("turbulence.taylor", tbl.get("taylor", True)),
+        "sample_rate_hz": _num("turbulence.sample_rate_hz", tbl.get("sample_rate_hz", 50.0), 1.0, 1000.0),
+        # Periodic series: make it at least as long as the run (and 10 minutes).
+        "duration_s": max(600.0, duration + 10.0),
+    }
+    try:
+        if "level" in tbl:
+            lvl = tbl["level"]
+            if lvl not in TURBULENCE_LEVELS:
+                raise ScenarioError(
+                    f"turbulence.level = {lvl!r}: allowed values are {', '.join(TURBULENCE_LEVELS)}"
+                )
+            if TURBULENCE_LEVELS[lvl] == 0.0:
+                return None
+            return KaimalTurbulence(sigma_u=TURBULENCE_LEVELS[lvl], **kw)
+        if "sigma_u_m_s" in tbl:
+            return KaimalTurbulence(sigma_u=_num("turbulence.sigma_u_m_s", tbl["sigma_u_m_s"], 0.0, 20.0), **kw)
+        if "intensity" in tbl:
+            ti = _num("turbulence.intensity", tbl["intensity"], 0.0, 1.0)
+            return KaimalTurbulence.from_intensity(ti, max(u_mean, 1.0), **kw)
+        cls = tbl["intensity_class"]
+        if cls not in ("A", "B", "C"):
+            raise ScenarioError(f"turbulence.intensity_class = {cls!r}: allowed values are 'A', 'B', 'C'")
+        return KaimalTurbulence.from_intensity_class(cls, max(u_mean, 1.0), **kw)
+    except ScenarioError:
+        raise
+    except ValueError as e:
+        raise ScenarioError(f"turbulence: {e}") from None
+
+
+def _parse_dataclass(name: str, cls: type, tbl: Any, angle_fields: tuple[str, ...] = ()) -> Any:
+    """Override a config dataclass from a table; unknown keys and bad values are errors."""
+    if tbl is None:
+        return cls()
+    allowed = {f.name for f in fields(cls)}
+    alias = {f"{a}_deg": a for a in angle_fields}
+    tbl = _table(name, tbl, allowed | set(alias))
+    kw: dict[str, Any] = {}
+    for k, v in tbl.items():
+        key = alias.get(k, k)
+        default = getattr(cls(), key)
+        if isinstance(default, bool):
+            kw[key] = _bool(f"{name}.{k}", v)
+        elif isinstance(default, int) and not isinstance(default, bool):
+            kw[key] = int(_num(f"{name}.{k}", v, 0, 1e9))
+        elif isinstance(default, tuple):
+            kw[key] = _vec3(f"{name}.{k}", v)
+        else:
+            val = _num(f"{name}.{k}", v, -1e9, 1e9)
+            kw[key] = math.radians(val) if k in alias else val
+    return cls(**kw)
+
+
+def _parse_route(tbl: dict[str, Any] | None) -> Route:
+    if tbl is None:
+        return Route()
+    _table("route", tbl, {"takeoff_altitude_m", "cruise_speed_m_s", "waypoints", "land"})
+    wps = []
+    raw = tbl.get("waypoints", [])
+    if not isinstance(raw, list):
+        raise ScenarioError("route.waypoints: expected a list of {position_ned = [...], hold_s = ...} tables")
+    for i, w in enumerate(raw):
+        name = f"route.waypoints[{i}]"
+        w = _table(name, w, {"position_ned", "hold_s", "acceptance_radius_m", "speed_m_s"})
+        if "position_ned" not in w:
+            raise ScenarioError(f"{name}.position_ned: required ([north, east, down] m)")
+        pos = _vec3(f"{name}.position_ned", w["position_ned"])
+        if pos[2] > 0:
+            raise ScenarioError(f"{name}.position_ned[2] = {pos[2]}: must be <= 0 (NED: down is positive)")
+        wps.append(
+            Waypoint(
+                pos,
+                _num(f"{name}.hold_s", w.get("hold_s", 0.0), 0.0, 1e5),
+                _num(f"{name}.acceptance_radius_m", w.get("acceptance_radius_m", 1.0), 0.1, 100.0),
+                _num(f"{name}.speed_m_s", w["speed_m_s"], 0.1, 20.0) if "speed_m_s" in w else math.nan,
+            )
+        )
+    return Route(
+        takeoff_altitude_m=_num("route.takeoff_altitude_m", tbl.get("takeoff_altitude_m", 10.0), 0.5, 500.0),
+        cruise_speed_m_s=_num("route.cruise_speed_m_s", tbl.get("cruise_speed_m_s", 3.0), 0.1, 20.0),
+        waypoints=tuple(wps),
+        land=_bool("route.land", tbl.get("land", False)),
+    )
+
+
+TOP_KEYS = {
+    "name", "description", "duration_s", "seed", "vehicle", "physics", "wind", "turbulence",
+    "start", "route", "sensors", "controller", "flight", "plume",
+}  # fmt: skip
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
+    """Build a validated :class:`Scenario` from a parsed TOML document."""
+    _table("scenario", data, TOP_KEYS)
+    name = data.get("name", Path(source).stem)
+    if not isinstance(name, str) or not name:
+        raise ScenarioError("name: expected a non-empty string")
+    duration = _num("duration_s", data.get("duration_s", 60.0), 0.01, 86400.0)
+    seed = data.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"seed = {seed!r}: expected an integer >= 0")
+    phys = _table("physics", data.get("physics", {}), {"rate_hz", "mode_rate_hz"})
+    rate = _num("physics.rate_hz", phys.get("rate_hz", 500.0), 100.0, 10000.0)
+    mode_rate = _num("physics.mode_rate_hz", phys.get("mode_rate_hz", 50.0), 1.0, rate)
+    if abs(rate / mode_rate - round(rate / mode_rate)) > 1e-9:
+        raise ScenarioError(f"physics.mode_rate_hz = {mode_rate}: must divide physics.rate_hz = {rate}")
+    wind = _parse_wind(data.get("wind", {"velocity_ned": [0.0, 0.0, 0.0]}))
+    turb = _parse_turbulence(data.get("turbulence", {"model": "none"}), wind, duration)
+    st = _table("start", data.get("start", {}), {"position_ned", "yaw_deg", "airborne"})
+    start = Start(
+        _vec3("start.position_ned", st.get("position_ned", [0.0, 0.0, 0.0])),
+        _num("start.yaw_deg", st.get("yaw_deg", 0.0), -360.0, 360.0),
+        _bool("start.airborne", st.get("airborne", False)),
+    )
+    if start.airborne and start.position_ned[2] >= -0.5:
+        raise ScenarioError("start.position_ned[2]: an airborne start needs an altitude (z <= -0.5 m, NED)")
+    if not start.airborne and start.position_ned[2] != 0.0:
+        raise ScenarioError("start.position_ned[2]: a ground start must have z = 0 (set airborne = true)")
+    sens = _table("sensors", data.get("sensors", {}), {"imu", "esc", "gnss", "baro", "mag", "temperature", "home"})
+    sensors = SensorSuiteConfig(
+        imu=_parse_dataclass("sensors.imu", ImuConfig, sens.get("imu")),
+        esc=_parse_dataclass("sensors.esc", EscConfig, sens.get("esc")),
+        gnss=_parse_dataclass("sensors.gnss", GnssConfig, sens.get("gnss")),
+        baro=_parse_dataclass("sensors.baro", BaroConfig, sens.get("baro")),
+        mag=_parse_dataclass("sensors.mag", MagConfig, sens.get("mag")),
+        temperature=_parse_dataclass("sensors.temperature", TemperatureConfig, sens.get("temperature")),
+        home=_parse_dataclass("sensors.home", HomeConfig, sens.get("home")),
+    )
+    try:
+        sensors.validate(rate)
+    except ValueError as e:
+        raise ScenarioError(str(e)) from None
+    gains = _parse_dataclass(
+        "controller", ControllerGains, data.get("controller"),
+        angle_fields=("tilt_max", "rate_max_rp", "rate_max_yaw"),
+    )  # fmt: skip
+    try:
+        gains.validate()
+    except ValueError as e:
+        raise ScenarioError(str(e)) from None
+    route = _parse_route(data.get("route"))
+    flight = _parse_dataclass("flight", FlightConfig, data.get("flight"))
+    flight = replace(flight, takeoff_altitude_m=route.takeoff_altitude_m, cruise_speed_m_s=route.cruise_speed_m_s)
+    plume = data.get("plume")
+    if plume is not None and not isinstance(plume, dict):
+        raise ScenarioError("[plume]: expected a table")
+    vehicle = data.get("vehicle", "nasa-quad")
+    if not isinstance(vehicle, str):
+        raise ScenarioError("vehicle: expected a vehicle name ('nasa-quad') or a .toml path")
+    return Scenario(
+        name=name,
+        description=str(data.get("description", "")),
+        duration_s=duration,
+        seed=seed,
+        vehicle=vehicle,
+        physics_rate_hz=rate,
+        mode_rate_hz=mode_rate,
+        wind=wind,
+        turbulence=turb,
+        start=start,
+        route=route,
+        sensors=sensors,
+        gains=gains,
+        flight=flight,
+        plume=plume,
+        source_path=source,
+    )
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenarios shipped with the package."""
+    folder = resources.files("sitl") / "scenarios"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a built-in scenario by name (``paper-s1``) or a TOML file by path."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f"scenario file {p} does not exist")
+        text = p.read_bytes()
+        source = str(p)
+    else:
+        res = resources.files("sitl") / "scenarios" / f"{name_or_path}.toml"
+        if not res.is_file():
+            raise ScenarioError(
+                f"unknown scenario {str(name_or_path)!r}: built-ins are {', '.join(builtin_scenarios())}, "
+                "or give a path to a .toml file"
+            )
+        text = res.read_bytes()
+        source = f"builtin:{name_or_path}"
+    try:
+        data = tomllib.loads(text.decode())
+    except tomllib.TOMLDecodeError as e:
+        raise ScenarioError(f"{source}: TOML syntax error: {e}") from None
+    if "vehicle" in data and isinstance(data["vehicle"], str) and data["vehicle"].endswith(".toml"):
+        vp = Path(data["vehicle"])
+        if not vp.is_absolute() and p.suffix == ".toml":
+            data["vehicle"] = str((p.parent / vp).resolve())
+    return parse_scenario(data, source)
