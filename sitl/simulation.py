@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from sitl.controller import N_CTRL_STATE, SP_FLAGS, SP_POS, control
+from sitl.controller import GAIN_NAMES, N_CTRL_STATE, SP_FLAGS, SP_POS, control
 from sitl.dynamics import N_STATE, rk4_step
 from sitl.flight_modes import F_IDLE, FlightController, LandedState, Mode
 from sitl.frames import euler_to_quat, quat_to_dcm, tilt_angle
@@ -181,6 +181,7 @@ class Simulation:
         self.truth_log: list[np.ndarray] | None = [] if record_truth else None
         self.stats = RunStats()
         self.step_hooks: list = []  # callables(sim) run at every mode tick (plume, sensors)
+        self.summary_hooks: list = []  # callables(sim) -> dict of summary figures
         self.x = np.zeros(N_STATE)
         st = scenario.start
         yaw = math.radians(st.yaw_deg)
@@ -386,6 +387,26 @@ class Simulation:
         for name, q in self.outputs.extra.items():
             out[name] = list(q)
             q.clear()
+        return out
+
+    # ------------------------------------------------------------------ live tuning
+    def gain(self, name: str) -> float:
+        """Current value of a controller gain (see :class:`sitl.controller.ControllerGains`)."""
+        return float(self._gains[GAIN_NAMES.index(name)])
+
+    def set_gain(self, name: str, value: float) -> None:
+        """Change a controller gain in flight (parameter protocol). ValueError if unknown/bad."""
+        if name not in GAIN_NAMES:
+            raise ValueError(f"unknown gain {name!r}; allowed: {', '.join(GAIN_NAMES)}")
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"gain {name} = {value!r}: must be finite and >= 0")
+        self._gains[GAIN_NAMES.index(name)] = float(value)
+
+    def summary_extras(self) -> dict[str, object]:
+        """Extra figures for ``windseek sim --json`` contributed by attached models."""
+        out: dict[str, object] = {}
+        for fn in self.summary_hooks:
+            out.update(fn(self))
         return out
 
     def truth_array(self) -> np.ndarray:
