@@ -484,7 +484,8 @@ class _MeanderField:
     def unit(self, xy: np.ndarray) -> np.ndarray:
         """Unit-variance field (K,3) (north, east, up) at horizontal NED points xy (K,2) [m]."""
         arg = (xy - self.offset) @ self.k.T + self.phase
-        return np.hstack([np.cos(arg), np.sin(arg)]) @ self.amp
+        m = len(self.phase)
+        return np.cos(arg) @ self.amp[:m] + np.sin(arg) @ self.amp[m:]
 
 
 class PuffPlume:
@@ -614,7 +615,8 @@ class PuffPlume:
             [self._serial, np.arange(self._next_serial, self._next_serial + len(m))]
         )
         self._next_serial += len(m)
-        self._unit_meander = np.concatenate([self._unit_meander, self._meander.unit(pos[:, :2])])
+        # New puffs get their meander sample in this substep's refresh (see _substep).
+        self._unit_meander = np.concatenate([self._unit_meander, np.full((len(m), 3), np.nan)])
         self._pos = np.concatenate([self._pos, pos])
         self._t_rel = np.concatenate([self._t_rel, *new_t])
         self._mass = np.concatenate([self._mass, m])
@@ -630,6 +632,7 @@ class PuffPlume:
             # The meander is smooth and nearly frozen in the frame the puffs ride in, so
             # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S.
             group = self._serial % self._n_groups == self._substep_count % self._n_groups
+            group |= np.isnan(self._unit_meander[:, 0])
             if group.any():
                 self._unit_meander[group] = self._meander.unit(self._pos[group, :2])
             phys = np.column_stack([self._pos[:, 0], self._pos[:, 1], -np.abs(self._pos[:, 2])])
@@ -638,7 +641,8 @@ class PuffPlume:
             walk_y = math.sqrt(max(cal_y.small_scale_rate - growth, 0.0) * h)
             walk_z = math.sqrt(max(cal_z.small_scale_rate - growth, 0.0) * h)
             scale = np.array([cal_y.meander_sigma, cal_y.meander_sigma, cal_z.meander_sigma])
-            noise = self._rng.standard_normal((k, 3)) * np.array([walk_y, walk_y, walk_z])
+            noise = self._rng.standard_normal((k, 3))
+            noise *= np.array([walk_y, walk_y, walk_z])
             # Vertical in the unfolded coordinate: NED velocity is down, altitude is up.
             vel[:, 2] = -vel[:, 2]
             self._pos += (vel + self._unit_meander * scale) * h + noise
