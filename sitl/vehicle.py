@@ -44,9 +44,9 @@ COEFFICIENT_NAMES: tuple[str, ...] = (
     "C_n_Q0", "C_n_Qv", "C_n_Qmu", "C_n_Qz", "C_n_Hmu", "C_n_r_dt", "C_n_r",
 )  # fmt: skip
 
-#: Coefficients whose regressor has units of force (not moment): they carry a length,
-#: in ft in the paper. Converted to m at load.
-LENGTH_COEFFICIENTS = frozenset({"C_l_p_dt", "C_m_q_dt", "C_n_r_dt"})
+#: Moment coefficients whose regressor has units of force (rho*pi*R^2 * b^2 * rate * Omega,
+#: rho*pi*R^2 * b * u * Omega): they carry a length, ft in the paper. Converted to m at load.
+LENGTH_COEFFICIENTS = frozenset({"C_l_p_dt", "C_m_q_dt", "C_n_r_dt", "C_n_Hmu"})
 #: Coefficients whose regressor (b/v0 * V^2 * rate) has units of force*time: they carry a
 #: length too. Absent from Table 5 (zero) but converted the same way if a user sets them.
 LENGTH_COEFFICIENTS_2 = frozenset({"C_l_p", "C_m_q", "C_n_r"})
