@@ -375,6 +375,10 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     plume = data.get("plume")
     if plume is not None and not isinstance(plume, dict):
         raise ScenarioError("[plume]: expected a table")
+    if plume is not None:
+        from sitl.plume_attach import parse_plume_table  # lazy: plume_attach imports this module
+
+        parse_plume_table(plume, mode_rate)
     vehicle = data.get("vehicle", "nasa-quad")
     if not isinstance(vehicle, str):
         raise ScenarioError("vehicle: expected a vehicle name ('nasa-quad') or a .toml path")

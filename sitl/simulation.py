@@ -197,6 +197,10 @@ class Simulation:
         self.fc.update(0.0, self.x, self._flags[0] != 0.0, False, 1.0 / scenario.mode_rate_hz)
         if autostart_route:
             self._start_route()
+        if scenario.plume is not None:
+            from sitl.plume_attach import attach_plume
+
+            attach_plume(self)
 
     # ------------------------------------------------------------------ set-up
     def _start_hovering(self) -> None:
