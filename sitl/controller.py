@@ -80,7 +80,7 @@ class ControllerGains:
     tilt_max: float = math.radians(35.0)  # MPC_TILTMAX_AIR, rad
     att_p_rp: float = 4.0  # MC_ROLL_P / MC_PITCH_P, 1/s
     att_p_yaw: float = 2.0  # MC_YAW_P, 1/s
-    rate_p_rp: float = 9.0  # MC_ROLLRATE_P (as angular-acceleration gain), 1/s
+    rate_p_rp: float = 20.0  # MC_ROLLRATE_P (as angular-acceleration gain), 1/s
     rate_i_rp: float = 20.0  # MC_ROLLRATE_I, 1/s^2
     rate_d_rp: float = 0.15  # MC_ROLLRATE_D
     rate_p_yaw: float = 6.0  # MC_YAWRATE_P

@@ -105,6 +105,7 @@ class Trajectory:
         self.target = self.pos.copy()
         self.speed = 0.0
         self.vel = np.zeros(3)
+        self.acc = np.zeros(3)
 
     def retarget(self, target: np.ndarray) -> None:
         self.target = np.array(target, dtype=float)
@@ -114,6 +115,7 @@ class Trajectory:
         self.target = self.pos.copy()
         self.speed = 0.0
         self.vel[:] = 0.0
+        self.acc[:] = 0.0
 
     def update(self, dt: float, cruise: float, accel: float, vehicle_pos: np.ndarray, lead: float) -> None:
         d = self.target - self.pos
@@ -122,15 +124,18 @@ class Trajectory:
             self.pos = self.target.copy()
             self.speed = 0.0
             self.vel[:] = 0.0
+            self.acc[:] = 0.0
             return
         v_allow = min(cruise, math.sqrt(2.0 * accel * dist))
         if float(np.linalg.norm(self.pos - vehicle_pos)) > lead:
             v_allow = min(v_allow, 0.5 * cruise)
-        self.speed = min(self.speed + accel * dt, v_allow)
+        prev = self.speed
+        self.speed = max(min(self.speed + accel * dt, v_allow), 0.0)
         step = min(self.speed * dt, dist)
         u = d / dist
         self.pos = self.pos + u * step
         self.vel = u * self.speed
+        self.acc = u * (self.speed - prev) / dt
 
 
 @dataclass
@@ -415,13 +420,19 @@ class FlightController:
         sp[:] = 0.0
         sp[SP_POS:SP_POS + 3] = self._traj.pos
         sp[SP_VEL:SP_VEL + 3] = self._traj.vel
+        sp[SP_ACC:SP_ACC + 3] = self._traj.acc
         sp[SP_YAW] = self._yaw if math.isfinite(self._yaw) else cur_yaw
-        flags = F_POS | F_VEL | F_YAW
-        if on_ground and self._traj.pos[2] > self._pos[2] - 0.2 and self.mode != Mode.TAKEOFF:
+        flags = F_POS | F_VEL | F_ACC | F_YAW
+        taking_off = self.mode == Mode.TAKEOFF or (
+            self.mode == Mode.MISSION
+            and self.mission_index < len(self.mission)
+            and self.mission[self.mission_index].kind == ItemKind.TAKEOFF
+        )
+        if on_ground and self._traj.pos[2] > self._pos[2] - 0.2 and not taking_off:
             # Armed on the ground with nowhere to climb to: spin at idle.
             flags = F_IDLE
             self.landed_state = LandedState.ON_GROUND
-        elif self.mode == Mode.TAKEOFF:
+        elif taking_off:
             self.landed_state = LandedState.TAKEOFF
         else:
             self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
@@ -538,7 +549,11 @@ class FlightController:
         reached = np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3)
         reached = reached and np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3
         if item.kind == ItemKind.TAKEOFF:
-            reached = abs(self._pos[2] - self._traj.target[2]) < 0.5 and not self._on_ground
+            reached = (
+                abs(self._pos[2] - self._traj.target[2]) < 0.3
+                and abs(self._vel[2]) < 0.5
+                and not self._on_ground
+            )
         if reached:
             hold = item.hold_s
             if not math.isfinite(self._hold_until):
