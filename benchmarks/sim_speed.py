@@ -1,0 +1,63 @@
+"""Simulator speed: simulated seconds per wall-clock second, one core.
+
+windseek at 500 Hz physics (RK4, rate loop every tick), Kaimal turbulence and every sensor on
+(IMU 250 Hz, ESC 50 Hz, GNSS 10 Hz, baro and magnetometer 50 Hz), hovering in the paper's
+Scenario 1 wind; goal: at least 100x real time. In the same run, RotorPy's Multirotor with
+SE3Control on a hover trajectory in a constant wind at 100 Hz and 500 Hz (the peer), and the
+ratio. JIT compilation is excluded (a warm-up run first). Usage:
+
+    python benchmarks/sim_speed.py [--seconds 120] [--no-peer]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from sitl.scenario import load_scenario  # noqa: E402
+from sitl.simulation import Simulation  # noqa: E402
+
+
+def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", repeats: int = 3) -> dict:
+    sc = load_scenario(scenario).with_duration(sim_seconds + 1.0)
+    Simulation(sc, seed=0).run(1.0)  # warm-up: JIT compile / load the numba cache
+    best = 0.0
+    for r in range(repeats):
+        sim = Simulation(sc, seed=r)
+        t0 = time.perf_counter()
+        sim.run(sim_seconds)
+        wall = time.perf_counter() - t0
+        best = max(best, sim_seconds / wall)
+        assert not sim.crashed
+    return {"scenario": scenario, "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
+            "realtime_factor": best}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=120.0)
+    ap.add_argument("--peer-seconds", type=float, default=10.0)
+    ap.add_argument("--no-peer", action="store_true")
+    args = ap.parse_args()
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
+    ws = windseek_realtime_factor(args.seconds)
+    print(f"windseek  500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
+          f"(goal >= 100)")
+    if args.no_peer:
+        return
+    from rotorpy_peer import rotorpy_realtime_factor
+
+    for hz in (100.0, 500.0):
+        rp = rotorpy_realtime_factor(hz, args.peer_seconds)
+        print(f"RotorPy   {hz:3.0f} Hz, SE3Control hover, const wind: {rp['realtime_factor']:8.1f} x real time "
+              f"-> windseek@500 Hz / RotorPy@{hz:.0f} Hz = {ws['realtime_factor'] / rp['realtime_factor']:.1f}")
+
+
+if __name__ == "__main__":
+    main()
