@@ -15,6 +15,7 @@ deliberately not installed.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import os
@@ -31,7 +32,8 @@ def ned_to_rotorpy_enu(vec_ned):
 
 def rotorpy_realtime_factor(rate_hz: float, sim_seconds: float = 20.0,
                             wind_ned=(-10.0, 0.0, 0.0)) -> dict:
-    """Simulated seconds per wall-clock second of RotorPy's Multirotor (its default quad params) with SE3Control on a hover trajectory in a constant wind, stepping at rate_hz, one core.
+    """Simulated seconds per wall-clock second of RotorPy's Multirotor (its default quad
+    params) with SE3Control on a hover trajectory in a constant wind, stepping at rate_hz, one core.
 
     Vehicle: ``rotorpy.vehicles.multirotor.Multirotor`` with the Crazyflie
     parameters (``rotorpy.vehicles.crazyflie_params.quad_params``), the set
@@ -119,10 +121,8 @@ def rotorpy_realtime_factor(rate_hz: float, sim_seconds: float = 20.0,
         wall_s = time.perf_counter() - t0
     finally:
         if old_affinity is not None:
-            try:
+            with contextlib.suppress(OSError):
                 os.sched_setaffinity(0, old_affinity)
-            except OSError:
-                pass
 
     sim_s = n_steps * dt
     final_err = float(np.linalg.norm(np.asarray(state["x"], dtype=float) - hover_point))

@@ -193,7 +193,8 @@ def _parse_wind(tbl: dict[str, Any]) -> SteadyWind:
             _num("wind.direction_steps.interval_s", ds.get("interval_s"), 0.1, 1e5),
             **kw,
         )
-    base = _wind_vector("wind", {k: v for k, v in tbl.items() if k in {"velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"}})
+    vec_keys = {"velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"}
+    base = _wind_vector("wind", {k: v for k, v in tbl.items() if k in vec_keys})
     changes = []
     raw = tbl.get("changes", [])
     if not isinstance(raw, list):

@@ -27,6 +27,7 @@ def test_sim_text_and_bad_scenario(capsys):
 
 def test_installed_entry_point():
     exe = os.path.join(os.path.dirname(sys.executable), "windseek")
-    r = subprocess.run([exe, "sim", "paper-s1", "--duration", "1", "--json"], capture_output=True, text=True, timeout=120)
+    cmd = [exe, "sim", "paper-s1", "--duration", "1", "--json"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["sim_time_s"] == 1.0

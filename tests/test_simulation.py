@@ -46,7 +46,11 @@ def test_free_fall_accelerates_at_g():
 def test_rests_on_ground_takes_off_lands_and_disarms():
     sc = _scenario(
         start={"position_ned": [0.0, 0.0, 0.0]},
-        route={"takeoff_altitude_m": 5.0, "waypoints": [{"position_ned": [3.0, 0.0, -5.0], "hold_s": 2.0}], "land": True},
+        route={
+            "takeoff_altitude_m": 5.0,
+            "waypoints": [{"position_ned": [3.0, 0.0, -5.0], "hold_s": 2.0}],
+            "land": True,
+        },
     )
     sim = Simulation(sc, seed=2, autostart_route=False)
     sim.run(2.0)  # disarmed on the ground: stays put, accelerometer reads -g

@@ -72,7 +72,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out))
     else:
         print(f"scenario {out['scenario']} (seed {out['seed']})")
-        print(f"  simulated {out['sim_time_s']:.1f} s in {out['wall_time_s']:.2f} s wall: {out['realtime_factor']:.0f}x real time")
+        print(
+            f"  simulated {out['sim_time_s']:.1f} s in {out['wall_time_s']:.2f} s wall: "
+            f"{out['realtime_factor']:.0f}x real time"
+        )
         print(f"  position error RMS vs commanded path: {out['position_error_rms_m']:.3f} m")
         print(f"  max tilt: {out['max_tilt_deg']:.1f} deg   crashed: {out['crashed']}")
         print(f"  final position NED: {out['final_position_ned_m']} m, mode {out['mode']}, "
