@@ -241,7 +241,10 @@ class PlumeModel:
         t0 = -n_warm * dt_update  # whole update periods, so plume steps stay on the grid
         self.plume: PuffPlume | GaussianPlume = make_plume(setup.plume, sim.wind, ss_plume, t0=t0)
         for i in range(n_warm):
-            self.plume.step(t0 + i * dt_update, dt_update)
+            # Step between grid times (i - n_warm) * dt so the plume lands on t = 0 exactly
+            # (accumulating t0 + i * dt would leave it a rounding error away from 0).
+            ta, tb = (i - n_warm) * dt_update, (i + 1 - n_warm) * dt_update
+            self.plume.step(ta, tb - ta)
         self.sensor = ChemicalSensor(setup.sensor, ss_sensor)
         mode_rate = sim.scenario.mode_rate_hz
         # Rates are validated to divide the mode rate, so these are exact integers.
