@@ -139,3 +139,28 @@ def test_plume_scenarios_load() -> None:
     v0, v1 = shift.velocity_ned, shift.changes[0].velocity_ned
     turn = np.degrees(np.arctan2(v1[1], v1[0]) - np.arctan2(v0[1], v0[0]))
     assert 30.0 <= abs(turn) <= 40.0
+
+
+def test_gaussian_model_attaches() -> None:
+    sim = Simulation(parse_scenario(_with_plume(model="gaussian"), "test.toml"), seed=1)
+    sim.run_until(1.0)
+    assert len(sim.drain()["chem"]) == 10
+    assert sim.summary_extras()["plume_puffs"] == 0
+
+
+def test_puff_concentration_kernel_matches_the_closed_form_sum() -> None:
+    """The fused kernel is the sum of ground-reflected isotropic Gaussian puffs."""
+    sim = Simulation(load_scenario("open-field"), seed=5, autostart_route=False)
+    plume = sim.plume
+    pts = np.array([[x, y, z] for x in (0.0, 20.0, 45.0, 59.0) for y in (-3.0, 0.0, 2.0) for z in (0.0, -2.0, -5.0)])
+    p = plume.puffs  # physical x, y, z NED and r^2
+    mass = plume.mass_in_puffs_g / len(p)  # equal masses: one source, constant rate
+    r2 = p[:, 3]
+    dh2 = (pts[:, None, 0] - p[:, 0]) ** 2 + (pts[:, None, 1] - p[:, 1]) ** 2
+    zq, zp = -pts[:, None, 2], -p[:, 2]
+    g = np.exp(-0.5 * (dh2 + (zq - zp) ** 2) / r2) + np.exp(-0.5 * (dh2 + (zq + zp) ** 2) / r2)
+    ref = g @ (mass * 1000.0 / ((2.0 * np.pi) ** 1.5 * r2**1.5))
+    got = plume.concentration(pts)
+    assert ref.max() > 1.0  # the check covers points inside the plume
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+    assert plume.concentration(pts[4]) == pytest.approx(ref[4], rel=1e-12, abs=1e-12)
