@@ -1,0 +1,178 @@
+"""The MAVLink endpoint: frames in and out over several transports, with per-link parsers.
+
+Every transport is a *link* with its own MAVLink parser (a byte stream's parse state must not
+mix with another's). Incoming messages are dispatched by type to handlers; replies go back on
+the link a request came from, streams go to every link. Anything that cannot be parsed (bad
+CRC, truncated or unknown frames, garbage) is counted in :attr:`Endpoint.counters` and
+dropped; a handler that raises is counted too and never stops the endpoint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import select
+from collections import Counter
+from collections.abc import Callable
+
+from sitl.link.dialect import mavlink
+from sitl.link.transports import Transport, UdpTransport
+
+log = logging.getLogger(__name__)
+
+SYSTEM_ID = 1
+COMPONENT_ID = 1  # MAV_COMP_ID_AUTOPILOT1
+
+Handler = Callable[[object, "Link"], None]
+
+
+class Link:
+    """One transport plus its parser state."""
+
+    def __init__(self, transport: Transport, index: int) -> None:
+        self.transport = transport
+        self.index = index
+        self.parser = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
+        self.parser.robust_parsing = True
+        self.peers_seen: set[tuple[int, int]] = set()
+
+    @property
+    def name(self) -> str:
+        return self.transport.name
+
+
+class Endpoint:
+    """MAVLink system 1, component 1 on a set of transports."""
+
+    def __init__(self, transports: list[Transport]) -> None:
+        self.links = [Link(t, i) for i, t in enumerate(transports)]
+        self._encoder = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
+        self.handlers: dict[str, Handler] = {}
+        self.counters: Counter[str] = Counter()
+        self._fd_link: dict[int, Link] = {}
+        self.rx_hooks: list[Callable[[object, Link], None]] = []
+
+    # ------------------------------------------------------------------ output
+    def encode(self, msg: object) -> bytes:
+        """Pack with our identity and the next sequence number."""
+        enc = self._encoder
+        buf = msg.pack(enc)
+        enc.seq = (enc.seq + 1) % 256
+        return buf
+
+    def send(self, msg: object, link: Link | None = None) -> None:
+        """Send to one link, or to every link when ``link`` is None."""
+        buf = self.encode(msg)
+        targets = self.links if link is None else (link,)
+        for lk in targets:
+            lk.transport.write(buf)
+        self.counters["tx_messages"] += 1
+
+    def send_many(self, msgs: list, link: Link | None = None) -> None:
+        if not msgs:
+            return
+        buf = b"".join(self.encode(m) for m in msgs)
+        targets = self.links if link is None else (link,)
+        for lk in targets:
+            if isinstance(lk.transport, UdpTransport) and len(buf) > 1400:
+                self._write_chunked(lk, buf)
+            else:
+                lk.transport.write(buf)
+        self.counters["tx_messages"] += len(msgs)
+
+    def _write_chunked(self, lk: Link, msgs_buf: bytes) -> None:
+        # UDP: keep datagrams under a typical MTU, splitting only at frame boundaries.
+        start = 0
+        i = 0
+        n = len(msgs_buf)
+        while i < n:
+            frame_len = _frame_len(msgs_buf, i)
+            if i + frame_len - start > 1400 and i > start:
+                lk.transport.write(msgs_buf[start:i])
+                start = i
+            i += frame_len
+        if start < n:
+            lk.transport.write(msgs_buf[start:n])
+
+    # ------------------------------------------------------------------ input
+    def poll(self, timeout_s: float) -> int:
+        """Wait up to ``timeout_s`` for input, parse and dispatch it. Returns messages handled."""
+        fds: list[int] = []
+        self._fd_link.clear()
+        for lk in self.links:
+            for fd in lk.transport.fds():
+                self._fd_link[fd] = lk
+                fds.append(fd)
+        if not fds:
+            return 0
+        try:
+            ready, _, _ = select.select(fds, [], [], max(0.0, timeout_s))
+        except (InterruptedError, ValueError, OSError):
+            return 0
+        handled = 0
+        for fd in ready:
+            lk = self._fd_link[fd]
+            data = lk.transport.read(fd)
+            if data:
+                handled += self.feed(lk, data)
+        return handled
+
+    def feed(self, lk: Link, data: bytes) -> int:
+        """Parse bytes that arrived on a link and dispatch the messages."""
+        self.counters["rx_bytes"] += len(data)
+        try:
+            msgs = lk.parser.parse_buffer(data) or []
+        except Exception:  # the parser must never take the endpoint down
+            log.debug("parser error on %s", lk.name, exc_info=True)
+            self.counters["rx_bad"] += 1
+            lk.parser.buf = bytearray()
+            lk.parser.buf_index = 0
+            return 0
+        handled = 0
+        for msg in msgs:
+            mtype = msg.get_type()
+            if mtype == "BAD_DATA":
+                reason = getattr(msg, "reason", "")
+                self.counters["rx_bad"] += 1
+                if "unknown MAVLink message ID" in reason:
+                    self.counters["rx_unknown_id"] += 1
+                elif "invalid MAVLink CRC" in reason:
+                    self.counters["rx_bad_crc"] += 1
+                continue
+            if msg.get_srcSystem() == SYSTEM_ID and msg.get_srcComponent() == COMPONENT_ID:
+                continue  # our own frames reflected back (e.g. a serial loop)
+            self.counters["rx_messages"] += 1
+            lk.peers_seen.add((msg.get_srcSystem(), msg.get_srcComponent()))
+            for hook in self.rx_hooks:
+                hook(msg, lk)
+            handler = self.handlers.get(mtype)
+            if handler is None:
+                self.counters["rx_ignored"] += 1
+                continue
+            try:
+                handler(msg, lk)
+                handled += 1
+            except Exception:
+                log.warning("handler for %s failed", mtype, exc_info=True)
+                self.counters["handler_errors"] += 1
+        return handled
+
+    def close(self) -> None:
+        for lk in self.links:
+            with contextlib.suppress(OSError):
+                lk.transport.close()
+
+
+def _frame_len(buf: bytes, i: int) -> int:
+    """Length of the MAVLink frame starting at ``buf[i]`` (v1 or v2, signed or not)."""
+    if buf[i] == 0xFD:
+        signed = buf[i + 2] & 0x01
+        return 12 + buf[i + 1] + (13 if signed else 0)
+    return 8 + buf[i + 1]
+
+
+def targets_us(msg: object) -> bool:
+    """True if a message addressed with target_system/target_component is for us (0 = broadcast)."""
+    ts = getattr(msg, "target_system", 0)
+    tc = getattr(msg, "target_component", 0)
+    return ts in (0, SYSTEM_ID) and tc in (0, COMPONENT_ID)

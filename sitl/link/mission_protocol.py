@@ -1,0 +1,379 @@
+"""MAVLink mission protocol for missions (type 0) and the geofence (type 1); rally unsupported.
+
+Upload: MISSION_COUNT -> MISSION_REQUEST_INT(seq) ... -> MISSION_ACK, with the request
+re-sent after ``REQUEST_TIMEOUT_S`` (wall clock) up to ``REQUEST_RETRIES`` times, then the
+transfer is abandoned with MAV_MISSION_OPERATION_CANCELLED. Download: MISSION_REQUEST_LIST
+-> MISSION_COUNT, MISSION_REQUEST_INT(seq) -> MISSION_ITEM_INT. Clear: MISSION_CLEAR_ALL.
+Set current: MISSION_SET_CURRENT. A rejected upload leaves the previous plan in place.
+
+Mission items: NAV_WAYPOINT (param1 hold s, param2 acceptance radius m, param4 yaw deg),
+NAV_TAKEOFF (z), NAV_LAND (x, y or 0/0 = here), NAV_LOITER_TIME (param1 s), NAV_RETURN_TO_LAUNCH,
+DO_CHANGE_SPEED (param2 m/s). Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
+(above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
+EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
+NAV_FENCE_RETURN_POINT (stored, not used). Errors use the MAV_MISSION_RESULT codes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sitl.flight_modes import ItemKind, MissionItem, Mode
+from sitl.link.dialect import mavlink as mav
+from sitl.link.endpoint import Link, targets_us
+from sitl.link.geofence import Geofence
+from sitl.sensors import geodetic_to_ned
+
+if TYPE_CHECKING:
+    from sitl.link.runner import SitlLink
+
+REQUEST_TIMEOUT_S = 0.5
+REQUEST_RETRIES = 5
+MAX_ITEMS = 1000
+
+MISSION = mav.MAV_MISSION_TYPE_MISSION
+FENCE = mav.MAV_MISSION_TYPE_FENCE
+
+GLOBAL_FRAMES = {mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_INT}
+RELATIVE_FRAMES = {mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
+POSITION_FRAMES = GLOBAL_FRAMES | RELATIVE_FRAMES
+
+NAV_KINDS = {
+    mav.MAV_CMD_NAV_WAYPOINT: ItemKind.WAYPOINT,
+    mav.MAV_CMD_NAV_TAKEOFF: ItemKind.TAKEOFF,
+    mav.MAV_CMD_NAV_LAND: ItemKind.LAND,
+    mav.MAV_CMD_NAV_LOITER_TIME: ItemKind.LOITER_TIME,
+    mav.MAV_CMD_NAV_RETURN_TO_LAUNCH: ItemKind.RTL,
+    mav.MAV_CMD_DO_CHANGE_SPEED: ItemKind.CHANGE_SPEED,
+}
+FENCE_CMDS = {
+    mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+    mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+    mav.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+    mav.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+    mav.MAV_CMD_NAV_FENCE_RETURN_POINT,
+}
+
+
+class ItemError(ValueError):
+    """A mission item the vehicle refuses; ``code`` is the MAV_MISSION_RESULT."""
+
+    def __init__(self, code: int, text: str) -> None:
+        super().__init__(text)
+        self.code = code
+
+
+@dataclass
+class Transfer:
+    link: Link
+    mission_type: int
+    count: int
+    sysid: int
+    compid: int
+    items: list = field(default_factory=list)
+    next_seq: int = 0
+    deadline: float = 0.0
+    retries: int = 0
+
+
+class MissionProtocol:
+    """Mission/geofence storage and transfers for one :class:`SitlLink`."""
+
+    def __init__(self, sitl: SitlLink) -> None:
+        self.sitl = sitl
+        self.plans: dict[int, list] = {MISSION: [], FENCE: []}  # the raw MISSION_ITEM_INT messages
+        self.transfer: Transfer | None = None
+        self._last_done: tuple[int, int, int] | None = None  # (link index, type, count) of last upload
+        ep = sitl.endpoint
+        for name in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
+                     "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
+                     "MISSION_ACK"):  # fmt: skip
+            ep.handlers[name] = getattr(self, "on_" + name.lower())
+
+    # ------------------------------------------------------------------ helpers
+    def _ack(self, link: Link, msg: object, code: int, mission_type: int) -> None:
+        self.sitl.endpoint.send(
+            mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
+        )
+        if code != mav.MAV_MISSION_ACCEPTED:
+            self.sitl.endpoint.counters["mission_errors"] += 1
+
+    def _request(self, tr: Transfer) -> None:
+        self.sitl.endpoint.send(
+            mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link
+        )
+        tr.deadline = time.monotonic() + REQUEST_TIMEOUT_S
+
+    def tick(self) -> None:
+        """Re-request after a timeout; give up after the retries (called by the runner loop)."""
+        tr = self.transfer
+        if tr is None or time.monotonic() < tr.deadline:
+            return
+        if tr.retries >= REQUEST_RETRIES:
+            self.sitl.endpoint.send(
+                mav.MAVLink_mission_ack_message(tr.sysid, tr.compid, mav.MAV_MISSION_OPERATION_CANCELLED,
+                                              tr.mission_type), tr.link)  # fmt: skip
+            self.sitl.endpoint.counters["mission_timeouts"] += 1
+            self.transfer = None
+            return
+        tr.retries += 1
+        self._request(tr)
+
+    # ------------------------------------------------------------------ upload
+    def on_mission_count(self, msg: object, link: Link) -> None:
+        if not targets_us(msg):
+            return
+        mtype = getattr(msg, "mission_type", MISSION)
+        if mtype not in (MISSION, FENCE):
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            return
+        if msg.count > MAX_ITEMS:
+            self._ack(link, msg, mav.MAV_MISSION_NO_SPACE, mtype)
+            return
+        if msg.count == 0:
+            self._install(mtype, [])
+            self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
+            return
+        # A new MISSION_COUNT restarts any transfer in progress (a retried count is a restart too).
+        self.transfer = Transfer(link, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
+        self._request(self.transfer)
+
+    def on_mission_item(self, msg: object, link: Link) -> None:
+        # Legacy float item: same fields, lat/lon in degrees.
+        self._on_item(msg, link, as_int=False)
+
+    def on_mission_item_int(self, msg: object, link: Link) -> None:
+        self._on_item(msg, link, as_int=True)
+
+    def _on_item(self, msg: object, link: Link, as_int: bool) -> None:
+        if not targets_us(msg):
+            return
+        mtype = getattr(msg, "mission_type", MISSION)
+        tr = self.transfer
+        if tr is None or tr.link is not link or tr.mission_type != mtype:
+            if self._last_done == (link.index, mtype, msg.seq + 1):
+                self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)  # our final ACK was lost
+            else:
+                self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype)
+            return
+        if msg.seq < tr.next_seq:
+            self._request(tr)  # a duplicate: ask again for the one we need
+            return
+        if msg.seq > tr.next_seq:
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
+            self.transfer = None
+            return
+        item = _normalise(msg, as_int)
+        try:
+            self._validate(item, mtype)
+        except ItemError as e:
+            self.sitl.sim.fc.say(f"Mission item {msg.seq} rejected: {e}", 4)
+            self._ack(link, msg, e.code, mtype)
+            self.transfer = None
+            return
+        tr.items.append(item)
+        tr.next_seq += 1
+        tr.retries = 0
+        if tr.next_seq < tr.count:
+            self._request(tr)
+            return
+        try:
+            self._install(mtype, tr.items)
+        except ItemError as e:
+            self._ack(link, msg, e.code, mtype)
+            self.transfer = None
+            return
+        self.transfer = None
+        self._last_done = (link.index, mtype, tr.count)
+        self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
+
+    def _validate(self, it: dict, mtype: int) -> None:
+        cmd, frame = it["command"], it["frame"]
+        if mtype == FENCE:
+            if cmd not in FENCE_CMDS:
+                raise ItemError(mav.MAV_MISSION_UNSUPPORTED, f"command {cmd} is not a fence item")
+            if frame not in POSITION_FRAMES:
+                raise ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {frame}")
+            _check_latlon(it)
+            if cmd in (mav.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, mav.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION):
+                if not (math.isfinite(it["param1"]) and it["param1"] > 0):
+                    raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, "circle radius must be > 0")
+            elif cmd != mav.MAV_CMD_NAV_FENCE_RETURN_POINT and not (math.isfinite(it["param1"]) and it["param1"] >= 3):
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, "polygon needs >= 3 vertices")
+            return
+        kind = NAV_KINDS.get(cmd)
+        if kind is None:
+            raise ItemError(mav.MAV_MISSION_UNSUPPORTED, f"command {cmd} not supported")
+        if kind == ItemKind.CHANGE_SPEED:
+            s = it["param2"]
+            if not (s == -1 or (math.isfinite(s) and 0.1 <= s <= 20.0)):
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM2, f"speed {s} outside [0.1, 20] m/s")
+            return
+        if kind == ItemKind.RTL:
+            return
+        if frame not in POSITION_FRAMES:
+            raise ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {frame} not supported")
+        if kind in (ItemKind.WAYPOINT, ItemKind.LOITER_TIME):
+            if not (math.isfinite(it["param1"]) and 0 <= it["param1"] <= 86400):
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, f"hold time {it['param1']}")
+            _check_latlon(it)
+        if kind == ItemKind.WAYPOINT and not (math.isfinite(it["param2"]) and 0 <= it["param2"] <= 1000):
+            raise ItemError(mav.MAV_MISSION_INVALID_PARAM2, f"acceptance radius {it['param2']}")
+        if kind == ItemKind.LAND and (it["lat"] != 0 or it["lon"] != 0):
+            _check_latlon(it)
+        if not math.isfinite(it["z"]) or abs(it["z"]) > 1e4:
+            raise ItemError(mav.MAV_MISSION_INVALID_PARAM7, f"altitude {it['z']}")
+
+    def _install(self, mtype: int, items: list[dict]) -> None:
+        sitl = self.sitl
+        if mtype == FENCE:
+            sitl.geofence.load(self._fence_from(items))
+            self.plans[FENCE] = items
+            return
+        mission = [self._to_item(it) for it in items]
+        self.plans[MISSION] = items
+        fc = sitl.sim.fc
+        was_flying = fc.mode == Mode.MISSION and fc.armed
+        fc.set_mission(mission)
+        if was_flying:
+            fc.hold() if not mission else fc.start_mission(0)
+        sitl.mission_changed()
+
+    def _ned(self, it: dict) -> np.ndarray:
+        home = self.sitl.sim.scenario.sensors.home
+        ned = geodetic_to_ned(it["lat"], it["lon"], home.alt_m, home)
+        if it["frame"] in RELATIVE_FRAMES:
+            ned[2] = self.sitl.sim.fc.home[2] - it["z"]
+        else:
+            ned[2] = home.alt_m - it["z"]
+        return ned
+
+    def _to_item(self, it: dict) -> MissionItem:
+        kind = NAV_KINDS[it["command"]]
+        if kind == ItemKind.CHANGE_SPEED:
+            s = it["param2"]
+            return MissionItem(kind, speed_m_s=math.nan if s == -1 else float(s))
+        if kind == ItemKind.RTL:
+            return MissionItem(kind)
+        ned = self._ned(it)
+        yaw = math.radians(it["param4"]) if math.isfinite(it["param4"]) else math.nan
+        if kind == ItemKind.TAKEOFF:
+            return MissionItem(kind, np.array([math.nan, math.nan, ned[2]]), acceptance_radius_m=0.5, yaw_rad=yaw)
+        if kind == ItemKind.LAND:
+            pos = np.full(3, math.nan)
+            if it["lat"] != 0 or it["lon"] != 0:
+                pos[0:2] = ned[0:2]
+            return MissionItem(kind, pos, yaw_rad=yaw)
+        radius = it["param2"] if kind == ItemKind.WAYPOINT and it["param2"] > 0 else 1.0
+        return MissionItem(kind, ned, acceptance_radius_m=float(radius), hold_s=float(it["param1"]), yaw_rad=yaw)
+
+    def _fence_from(self, items: list[dict]) -> Geofence:
+        fence = Geofence()
+        i = 0
+        while i < len(items):
+            it = items[i]
+            cmd = it["command"]
+            if cmd in (mav.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, mav.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION):
+                fence.add_circle(self._ned(it)[0:2], it["param1"], cmd == mav.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION)
+                i += 1
+            elif cmd == mav.MAV_CMD_NAV_FENCE_RETURN_POINT:
+                i += 1
+            else:
+                n = int(it["param1"])
+                group = items[i:i + n]
+                if len(group) < n or any(g["command"] != cmd or int(g["param1"]) != n for g in group):
+                    raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, f"polygon at {i} has inconsistent vertex count")
+                pts = np.array([self._ned(g)[0:2] for g in group])
+                fence.add_polygon(pts, cmd == mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION)
+                i += n
+        return fence
+
+    # ------------------------------------------------------------------ download, clear, current
+    def on_mission_request_list(self, msg: object, link: Link) -> None:
+        if not targets_us(msg):
+            return
+        mtype = getattr(msg, "mission_type", MISSION)
+        if mtype not in (MISSION, FENCE):
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            return
+        self.sitl.endpoint.send(
+            mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
+                                            mtype), link)  # fmt: skip
+
+    def on_mission_request_int(self, msg: object, link: Link) -> None:
+        if not targets_us(msg):
+            return
+        mtype = getattr(msg, "mission_type", MISSION)
+        plan = self.plans.get(mtype)
+        if plan is None:
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            return
+        if not 0 <= msg.seq < len(plan):
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
+            return
+        it = plan[msg.seq]
+        fc = self.sitl.sim.fc
+        self.sitl.endpoint.send(
+            mav.MAVLink_mission_item_int_message(
+                msg.get_srcSystem(), msg.get_srcComponent(), msg.seq, it["frame"], it["command"],
+                int(mtype == MISSION and msg.seq == fc.mission_index), it["autocontinue"],
+                it["param1"], it["param2"], it["param3"], it["param4"],
+                int(round(it["lat"] * 1e7)), int(round(it["lon"] * 1e7)), it["z"], mtype,
+            ),
+            link,
+        )  # fmt: skip
+
+    on_mission_request = on_mission_request_int
+
+    def on_mission_clear_all(self, msg: object, link: Link) -> None:
+        if not targets_us(msg):
+            return
+        mtype = getattr(msg, "mission_type", MISSION)
+        if mtype == mav.MAV_MISSION_TYPE_ALL:
+            self._install(MISSION, [])
+            self._install(FENCE, [])
+            mtype_ack = mtype
+        elif mtype in (MISSION, FENCE):
+            self._install(mtype, [])
+            mtype_ack = mtype
+        else:
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            return
+        self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype_ack)
+
+    def on_mission_set_current(self, msg: object, link: Link) -> None:
+        if not targets_us(msg):
+            return
+        fc = self.sitl.sim.fc
+        if not 0 <= msg.seq < len(fc.mission):
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, MISSION)
+            return
+        if fc.mode == Mode.MISSION and fc.armed:
+            fc.start_mission(msg.seq)
+        else:
+            fc.mission_index = msg.seq
+        self.sitl.endpoint.send_many(self.sitl.telemetry.mission_current())
+
+    def on_mission_ack(self, msg: object, link: Link) -> None:
+        pass  # end of a download: nothing to release, downloads are stateless here
+
+
+def _normalise(msg: object, as_int: bool) -> dict:
+    scale = 1e-7 if as_int else 1.0
+    return {
+        "frame": int(msg.frame), "command": int(msg.command), "autocontinue": int(msg.autocontinue),
+        "param1": float(msg.param1), "param2": float(msg.param2), "param3": float(msg.param3),
+        "param4": float(msg.param4), "lat": float(msg.x) * scale, "lon": float(msg.y) * scale, "z": float(msg.z),
+    }  # fmt: skip
+
+
+def _check_latlon(it: dict) -> None:
+    if not (math.isfinite(it["lat"]) and -90.0 <= it["lat"] <= 90.0):
+        raise ItemError(mav.MAV_MISSION_INVALID_PARAM5_X, f"latitude {it['lat']}")
+    if not (math.isfinite(it["lon"]) and -180.0 <= it["lon"] <= 180.0):
+        raise ItemError(mav.MAV_MISSION_INVALID_PARAM6_Y, f"longitude {it['lon']}")

@@ -1,0 +1,183 @@
+"""The SITL link: a :class:`~sitl.simulation.Simulation` behind a MAVLink endpoint, paced to the wall clock.
+
+One thread, one loop: advance the simulation by one chunk (10 ms of simulation time) in
+lockstep, send what is due, then wait on the sockets until the wall-clock instant at which the
+next chunk is due (``sim time / speed``), handling whatever arrives. Commands therefore act
+between two chunks, never inside the physics, and the simulation stays deterministic for a
+given sequence of inputs. When the machine cannot keep up, the loop runs the chunks back to
+back (still servicing the sockets between them); a lag over ``MAX_LAG_S`` of simulation time
+is forgiven (the clock is re-anchored) and counted in ``counters["overruns"]``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+
+from sitl.flight_modes import Mode
+from sitl.link.commands import CommandHandler
+from sitl.link.dialect import mavlink as mav
+from sitl.link.endpoint import Endpoint, Link, targets_us
+from sitl.link.geofence import Geofence
+from sitl.link.mission_protocol import MissionProtocol
+from sitl.link.offboard import OffboardHandler
+from sitl.link.params import ParamProtocol, ParamTable
+from sitl.link.streams import StreamScheduler
+from sitl.link.telemetry import Telemetry
+from sitl.link.transports import Transport
+from sitl.simulation import Simulation
+
+log = logging.getLogger(__name__)
+
+CHUNK_S = 0.01
+MAX_LAG_S = 0.5
+
+
+class SitlLink:
+    """Simulation + endpoint + protocol handlers + pacing loop.
+
+    Args:
+        sim: the simulation (created with ``autostart_route=False``).
+        transports: the byte pipes (UDP, TCP server, serial), all served at once.
+        speed: simulation seconds per wall-clock second (> 0).
+        true_wind_hz: rate of the simulation-only TRUEW* debug values (0 = off).
+    """
+
+    def __init__(self, sim: Simulation, transports: list[Transport], speed: float = 1.0,
+                 true_wind_hz: float = 5.0) -> None:  # fmt: skip
+        if not (math.isfinite(speed) and speed > 0):
+            raise ValueError(f"speed {speed}: must be a finite number > 0")
+        self.sim = sim
+        self.endpoint = Endpoint(transports)
+        self.telemetry = Telemetry(sim)
+        self.streams = StreamScheduler(self.telemetry, true_wind_hz)
+        self.geofence = Geofence()
+        sim.step_hooks.append(self.geofence.on_mode_tick)
+        self.commands = CommandHandler(self)
+        self.missions = MissionProtocol(self)
+        self.offboard = OffboardHandler(self)
+        self.params = ParamTable(self)
+        self.param_protocol = ParamProtocol(self, self.params)
+        ep = self.endpoint
+        ep.handlers["HEARTBEAT"] = lambda msg, link: None
+        ep.handlers["TIMESYNC"] = self.on_timesync
+        ep.handlers["PING"] = self.on_ping
+        self.speed = float(speed)
+        self._chunk_ticks = max(1, round(CHUNK_S / sim.dt))
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._wall0 = 0.0
+        self._sim0 = 0.0
+        self._last_mode = (sim.fc.mode, sim.fc.armed)
+        self._last_index = sim.fc.mission_index
+        self.chunks = 0
+        self.lag_max_s = 0.0
+
+    @property
+    def counters(self) -> dict[str, int]:
+        return self.endpoint.counters
+
+    def home_amsl(self) -> float:
+        """Home altitude AMSL, m."""
+        return self.sim.scenario.sensors.home.alt_m - float(self.sim.fc.home[2])
+
+    def set_speed(self, speed: float) -> None:
+        """Change the speed factor now (re-anchors the wall clock, so there is no jump)."""
+        if not (math.isfinite(speed) and speed > 0):
+            raise ValueError(f"speed {speed}: must be > 0")
+        self._wall0 = time.monotonic()
+        self._sim0 = self.sim.t
+        self.speed = float(speed)
+
+    def mission_changed(self) -> None:
+        self._last_index = -1  # announce MISSION_CURRENT at the next chunk
+
+    # ------------------------------------------------------------------ small handlers
+    def on_timesync(self, msg: object, link: Link) -> None:
+        if msg.tc1 == 0:  # a request: answer with our (simulation) clock
+            self.endpoint.send(mav.MAVLink_timesync_message(int(self.sim.t * 1e9), msg.ts1), link)
+
+    def on_ping(self, msg: object, link: Link) -> None:
+        if msg.target_system == 0 and msg.target_component == 0:
+            self.endpoint.send(
+                mav.MAVLink_ping_message(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()), link
+            )
+        elif not targets_us(msg):
+            return
+
+    # ------------------------------------------------------------------ loop
+    def advance(self) -> None:
+        """One chunk of simulation, then everything it produced goes out."""
+        sim = self.sim
+        fc = sim.fc
+        sim.step(self._chunk_ticks)
+        self.chunks += 1
+        samples = sim.drain()
+        tel = self.telemetry
+        tel.ingest(samples)
+        tel.update_battery()
+        out = self.streams.due(sim.t, samples)
+        state = (fc.mode, fc.armed)
+        if state != self._last_mode:
+            # An extra HEARTBEAT on a mode or arming change lets clients see it at once.
+            self._last_mode = state
+            out.extend(tel.heartbeat())
+        if fc.events:
+            for ev in fc.events:
+                out.append(mav.MAVLink_statustext_message(ev.severity, ev.text.encode()[:50]))
+            fc.events.clear()
+        if fc.mission_reached:
+            for i in fc.mission_reached:
+                out.append(mav.MAVLink_mission_item_reached_message(i))
+            fc.mission_reached.clear()
+        if fc.mission_index != self._last_index:
+            self._last_index = fc.mission_index
+            out.extend(tel.mission_current())
+        self.endpoint.send_many(out)
+
+    def serve(self, duration_s: float | None = None) -> None:
+        """Run paced until :meth:`stop` (or for ``duration_s`` of simulation time)."""
+        sim = self.sim
+        self._wall0 = time.monotonic()
+        self._sim0 = sim.t
+        t_end = math.inf if duration_s is None else sim.t + duration_s
+        chunk = self._chunk_ticks * sim.dt
+        while not self._stop.is_set() and sim.t < t_end - 1e-9:
+            now = time.monotonic()
+            due = self._sim0 + (now - self._wall0) * self.speed
+            lag = due - sim.t
+            if lag >= chunk - 1e-9:
+                self.lag_max_s = max(self.lag_max_s, lag)
+                if lag > MAX_LAG_S:
+                    self.counters["overruns"] += 1
+                    self._wall0 = now
+                    self._sim0 = sim.t
+                self.advance()
+                self.endpoint.poll(0.0)
+            else:
+                wait = (sim.t + chunk - self._sim0) / self.speed + self._wall0 - now
+                self.endpoint.poll(min(max(wait, 0.0), 0.05))
+            self.missions.tick()
+
+    def start(self) -> SitlLink:
+        """Serve in a background thread (tests, embedding)."""
+        self._stop.clear()
+        self._thread = threading.Thread(target=self.serve, name="sitl-link", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    def close(self) -> None:
+        self.stop()
+        self.endpoint.close()
+
+    @property
+    def mode(self) -> Mode:
+        return self.sim.fc.mode

@@ -1,0 +1,241 @@
+"""Byte pipes of the MAVLink endpoint: UDP, TCP server and serial, all non-blocking.
+
+A transport knows nothing about MAVLink: the endpoint polls :meth:`Transport.fds`, calls
+:meth:`Transport.read` when one is readable and :meth:`Transport.write` to send. A transport
+may carry several peers (UDP peers, TCP clients); a write goes to all of them, because
+MAVLink is a broadcast protocol and every ground station and API expects every stream.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import socket
+import termios
+import tty
+from dataclasses import dataclass
+
+#: Largest datagram we read; a MAVLink 2 frame is at most 280 bytes, a UDP packet may hold several.
+_MAX_READ = 65536
+
+
+def parse_host_port(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
+    """``HOST:PORT`` or ``PORT`` to (host, port); ValueError with the accepted forms otherwise."""
+    host, _, port = text.rpartition(":")
+    try:
+        p = int(port)
+    except ValueError:
+        raise ValueError(f"{text!r}: expected HOST:PORT or PORT (e.g. 127.0.0.1:14540)") from None
+    if not 0 <= p <= 65535:
+        raise ValueError(f"{text!r}: port must be in [0, 65535]")
+    return (host or default_host), p
+
+
+@dataclass
+class TransportStats:
+    rx_bytes: int = 0
+    tx_bytes: int = 0
+    tx_errors: int = 0
+
+
+class Transport:
+    """Base class: a named, non-blocking byte pipe to one or more peers."""
+
+    name = "transport"
+
+    def __init__(self) -> None:
+        self.stats = TransportStats()
+
+    def fds(self) -> list[int]:
+        """File descriptors to poll for reading."""
+        raise NotImplementedError
+
+    def read(self, fd: int) -> bytes:
+        """Bytes available on ``fd`` (readable per select); b"" if none."""
+        raise NotImplementedError
+
+    def write(self, data: bytes) -> None:
+        """Send to every peer; never blocks (a full buffer drops the frame and counts it)."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+class UdpTransport(Transport):
+    """One UDP socket bound to ``bind`` that sends to ``peers`` and to whoever sends to it.
+
+    Like PX4's ``mavlink start -u ... -o ...``: the configured peers (an API port, a ground
+    station port) get every message before they ever talk; a sender from another address is
+    added to the peers so it is answered too.
+    """
+
+    def __init__(self, peers: list[tuple[str, int]], bind: tuple[str, int] = ("0.0.0.0", 0)) -> None:
+        super().__init__()
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind(bind)
+        self.sock.setblocking(False)
+        self.peers: list[tuple[str, int]] = [(socket.gethostbyname(h), p) for h, p in peers]
+        self.name = f"udp:{self.port}"
+
+    @property
+    def port(self) -> int:
+        """The local port (useful when bound to port 0)."""
+        return self.sock.getsockname()[1]
+
+    def fds(self) -> list[int]:
+        return [self.sock.fileno()]
+
+    def read(self, fd: int) -> bytes:
+        chunks = []
+        while True:
+            try:
+                data, addr = self.sock.recvfrom(_MAX_READ)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                # ICMP port unreachable from a peer not (yet) listening surfaces here on Linux.
+                continue
+            if addr not in self.peers:
+                self.peers.append(addr)
+            chunks.append(data)
+        out = b"".join(chunks)
+        self.stats.rx_bytes += len(out)
+        return out
+
+    def write(self, data: bytes) -> None:
+        for peer in self.peers:
+            try:
+                self.sock.sendto(data, peer)
+                self.stats.tx_bytes += len(data)
+            except OSError:
+                self.stats.tx_errors += 1
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class TcpServerTransport(Transport):
+    """A TCP server; every connected client is a peer. Clients may come and go."""
+
+    def __init__(self, port: int, host: str = "0.0.0.0") -> None:
+        super().__init__()
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind((host, port))
+        self.server.listen(8)
+        self.server.setblocking(False)
+        self.clients: dict[int, socket.socket] = {}
+        self.name = f"tcp:{self.port}"
+
+    @property
+    def port(self) -> int:
+        return self.server.getsockname()[1]
+
+    def fds(self) -> list[int]:
+        return [self.server.fileno(), *self.clients]
+
+    def read(self, fd: int) -> bytes:
+        if fd == self.server.fileno():
+            try:
+                conn, _ = self.server.accept()
+            except OSError:
+                return b""
+            conn.setblocking(False)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self.clients[conn.fileno()] = conn
+            return b""
+        conn = self.clients.get(fd)
+        if conn is None:
+            return b""
+        try:
+            data = conn.recv(_MAX_READ)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(fd)
+            return b""
+        self.stats.rx_bytes += len(data)
+        return data
+
+    def _drop(self, fd: int) -> None:
+        conn = self.clients.pop(fd, None)
+        if conn is not None:
+            conn.close()
+
+    def write(self, data: bytes) -> None:
+        for fd, conn in list(self.clients.items()):
+            try:
+                n = conn.send(data)
+                self.stats.tx_bytes += n
+                if n < len(data):
+                    # A partial frame would desynchronise the peer's parser for one frame only;
+                    # MAVLink resynchronises on the next start byte, so count it and move on.
+                    self.stats.tx_errors += 1
+            except (BlockingIOError, InterruptedError):
+                self.stats.tx_errors += 1
+            except OSError:
+                self._drop(fd)
+
+    def close(self) -> None:
+        for fd in list(self.clients):
+            self._drop(fd)
+        self.server.close()
+
+
+_BAUDS = {b: getattr(termios, f"B{b}") for b in (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)
+          if hasattr(termios, f"B{b}")}  # fmt: skip
+
+
+class SerialTransport(Transport):
+    """A serial device (or pseudo-terminal) in raw mode, 8N1 at ``baud``."""
+
+    def __init__(self, device: str, baud: int = 57600) -> None:
+        super().__init__()
+        if baud not in _BAUDS:
+            raise ValueError(f"baud {baud}: allowed values are {', '.join(map(str, _BAUDS))}")
+        self.device = device
+        self.fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        tty.setraw(self.fd)
+        attrs = termios.tcgetattr(self.fd)
+        attrs[4] = attrs[5] = _BAUDS[baud]
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+        self.name = f"serial:{device}"
+
+    def fds(self) -> list[int]:
+        return [self.fd]
+
+    def read(self, fd: int) -> bytes:
+        try:
+            data = os.read(self.fd, _MAX_READ)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as e:
+            if e.errno == errno.EIO:  # the other end of a pty closed
+                return b""
+            raise
+        self.stats.rx_bytes += len(data)
+        return data
+
+    def write(self, data: bytes) -> None:
+        try:
+            n = os.write(self.fd, data)
+            self.stats.tx_bytes += n
+            if n < len(data):
+                self.stats.tx_errors += 1
+        except (BlockingIOError, InterruptedError, OSError):
+            self.stats.tx_errors += 1
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+def parse_serial(text: str) -> tuple[str, int]:
+    """``DEV[:BAUD]`` to (device, baud), baud 57600 by default."""
+    dev, sep, baud = text.rpartition(":")
+    if sep and baud.isdigit():
+        return dev, int(baud)
+    return text, 57600

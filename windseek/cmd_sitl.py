@@ -1,0 +1,87 @@
+"""``windseek sitl SCENARIO``: the simulator as a MAVLink 2 autopilot (PX4 dialect of modes), paced in real time.
+
+By default it sends on UDP to 127.0.0.1:14540 (API, like PX4's onboard link) and
+127.0.0.1:14550 (ground station), from an ephemeral local port, and answers whoever talks to it.
+``--udp`` replaces those peers; ``--udp-bind`` fixes the local port (for ``udpout://`` clients);
+``--tcp PORT`` adds a TCP server, ``--serial DEV[:BAUD]`` a serial port. It runs until SIGINT or
+SIGTERM and then closes every link.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from sitl.link import SerialTransport, SitlLink, TcpServerTransport, UdpTransport
+from sitl.link.transports import parse_host_port, parse_serial
+from sitl.scenario import load_scenario
+from sitl.simulation import Simulation
+
+DEFAULT_UDP_PEERS = ["127.0.0.1:14540", "127.0.0.1:14550"]
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "sitl",
+        help="run a scenario as a MAVLink autopilot (MAVSDK, pymavlink, QGroundControl, MAVProxy)",
+        description="Run a scenario in real time (times --speed) behind a MAVLink 2 endpoint that behaves "
+        "like a PX4 autopilot: system 1, component 1.",
+    )
+    p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml")
+    p.add_argument("--speed", type=float, default=1.0, help="simulation seconds per wall-clock second (default 1)")
+    p.add_argument("--udp", action="append", metavar="HOST:PORT",
+                   help="UDP peer to stream to (repeatable; default 127.0.0.1:14540 and 127.0.0.1:14550)")
+    p.add_argument("--udp-bind", default="0.0.0.0:0", metavar="HOST:PORT",
+                   help="local UDP address (default an ephemeral port on all interfaces)")
+    p.add_argument("--no-udp", action="store_true", help="no UDP link at all")
+    p.add_argument("--tcp", type=int, metavar="PORT", help="also serve MAVLink on a TCP server port")
+    p.add_argument("--serial", metavar="DEV[:BAUD]", help="also serve MAVLink on a serial device (default 57600 baud)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    p.add_argument("--true-wind-hz", type=float, default=5.0,
+                   help="rate of the simulation-only TRUEWN/TRUEWE/TRUEWD values (0 = off)")
+    p.set_defaults(func=run)
+
+
+def build(args: argparse.Namespace) -> SitlLink:
+    """Scenario, simulation, transports and link from the parsed arguments."""
+    sc = load_scenario(args.scenario)
+    sim = Simulation(sc, seed=args.seed, autostart_route=False)
+    transports = []
+    try:
+        if not args.no_udp:
+            peers = [parse_host_port(x) for x in (args.udp or DEFAULT_UDP_PEERS)]
+            transports.append(UdpTransport(peers, parse_host_port(args.udp_bind, "0.0.0.0")))
+        if args.tcp is not None:
+            transports.append(TcpServerTransport(args.tcp))
+        if args.serial:
+            dev, baud = parse_serial(args.serial)
+            transports.append(SerialTransport(dev, baud))
+        if not transports:
+            raise ValueError("no link: give --udp, --tcp or --serial (or drop --no-udp)")
+        return SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz)
+    except Exception:
+        for t in transports:
+            t.close()
+        raise
+
+
+def run(args: argparse.Namespace) -> int:
+    link = build(args)
+
+    def _stop(signum: int, frame: object) -> None:
+        link._stop.set()
+
+    old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    names = ", ".join(lk.name for lk in link.endpoint.links)
+    print(f"windseek sitl: {link.sim.scenario.name} at speed {link.speed:g} on {names}", flush=True)
+    try:
+        link.serve()
+    finally:
+        link.endpoint.close()
+        for s, h in old.items():
+            signal.signal(s, h)
+    c = link.counters
+    print(f"windseek sitl: stopped at t = {link.sim.t:.2f} s; rx {c['rx_messages']} msgs "
+          f"({c['rx_bad']} bad), tx {c['tx_messages']} msgs", file=sys.stderr, flush=True)
+    return 0
