@@ -1,0 +1,470 @@
+"""The paper's Bayesian wind estimator (Eq. 49-53): an unscented Kalman filter on the rotor model.
+
+Conventions (the whole project's):
+- SI units; world frame NED; body frame FRD; attitude quaternion [w, x, y, z] rotates FRD
+  vectors into NED (``R = quat_to_dcm(q)``, ``v_ned = R v_frd``).
+- WIND = AIR-MASS VELOCITY IN NED: a 10 m/s wind from the north is [-10, 0, 0].
+  Airspeed = ground velocity - wind. (The paper adds its wind to the ground velocity, so its
+  V_w is the negative of ours.)
+- Directions are FROM-directions in degrees, 0 = from north, 90 = from east.
+
+State x (6 or 9): [u, v, w] ground velocity in body axes (FRD, m/s), [W_n, W_e, W_d] wind
+(NED, m/s), optionally [b_x, b_y, b_z] accelerometer bias (FRD, m/s^2).
+Inputs (held between their samples): attitude q, body rates (gyro), rotor speeds.
+Process model (Eq. 49, 53), per step dt:
+    v_air  = v_body - R^T W
+    f      = rotor_wrench(v_air, rates, Omega, 0, p)[0:3] / m      (specific force, FRD)
+    v_body += dt (f + R^T [0, 0, g] - rates x v_body)
+    W, b   : random walks
+Measurements, each at its own rate (asynchronous updates):
+    accelerometer   h = f(v_air) + b     (FRD specific force, every IMU sample)
+    GNSS velocity   h = R v_body         (NED, at the sample's time of validity, see below)
+
+The force model is the simulator's own ``sitl.rotor_model.rotor_wrench`` (called from the
+numba kernels here), so the estimator and the simulator cannot drift apart; the parameter
+array may be exact or perturbed (``VehicleParams.perturbed``) to show what model error costs.
+
+GNSS latency: a fix is valid ``latency`` seconds before it arrives. The filter keeps a short
+history of its own NED velocity mean; the fix is moved forward to "now" by adding the change
+of that mean since the time of validity (innovation = z + (v_now - v_then) - R v_body). This
+is exact when the prediction over the delay is right and costs one lookup; it avoids
+re-running the filter from a stored past state.
+
+Bad input (non-finite, outside physical limits, duplicate or out-of-order timestamps) is
+rejected before it touches the state and counted in :attr:`WindEstimator.rejected`. Gaps
+are bridged by prediction only (covariance grows), in sub-steps of at most ``max_step_s``.
+
+The class is plain, synchronous and deterministic: no I/O, no threads, no randomness.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
+from numba import njit
+
+from estimator.direction import DirectionFilter, speed_direction
+from sitl.frames import quat_to_dcm
+from sitl.rotor_model import rotor_wrench
+from sitl.vehicle import P_G, P_MASS, P_WMAX, VehicleParams
+
+# Physical plausibility limits for raw inputs (beyond them a sample is a fault, not data).
+ACCEL_LIMIT_M_S2 = 160.0  # 16 g, a typical accelerometer range
+GYRO_LIMIT_RAD_S = 35.0  # 2000 deg/s
+VELOCITY_LIMIT_M_S = 100.0
+QUAT_NORM_TOL = 0.1
+
+
+@njit(cache=True)
+def _specific_force(x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Model specific force (FRD, m/s^2) at state x: rotor forces over mass at the airspeed."""
+    W0, W1, W2 = x[3], x[4], x[5]
+    v_air = np.empty(3)
+    for i in range(3):
+        # R^T W: the wind (NED) seen in body axes.
+        v_air[i] = x[i] - (R[0, i] * W0 + R[1, i] * W1 + R[2, i] * W2)
+    fm = rotor_wrench(v_air, rates, w_rot, np.zeros(4), p)
+    m = p[P_MASS]
+    out = np.empty(3)
+    out[0] = fm[0] / m
+    out[1] = fm[1] / m
+    out[2] = fm[2] / m
+    return out
+
+
+@njit(cache=True)
+def _process_batch(
+    sigmas: np.ndarray,
+    out: np.ndarray,
+    dt: float,
+    R: np.ndarray,
+    rates: np.ndarray,
+    w_rot: np.ndarray,
+    p: np.ndarray,
+    decay_d: float,
+) -> None:
+    """Propagate every sigma point by one Euler step of Eq. 49. Wind and bias: random walk,
+    except the vertical wind, multiplied by ``decay_d`` (1 = random walk, see EstimatorConfig)."""
+    g = p[P_G]
+    pr, qr, rr = rates[0], rates[1], rates[2]
+    for k in range(sigmas.shape[0]):
+        x = sigmas[k]
+        f = _specific_force(x, R, rates, w_rot, p)
+        u, v, w = x[0], x[1], x[2]
+        # Gravity in body axes is the third row of R (R^T [0, 0, g]); the rates x v term is
+        # the rotation of the body axes the velocity is expressed in.
+        du = f[0] + R[2, 0] * g - (qr * w - rr * v)
+        dv = f[1] + R[2, 1] * g - (rr * u - pr * w)
+        dw = f[2] + R[2, 2] * g - (pr * v - qr * u)
+        out[k, :] = x
+        out[k, 0] = u + dt * du
+        out[k, 1] = v + dt * dv
+        out[k, 2] = w + dt * dw
+        out[k, 5] = x[5] * decay_d
+
+
+@njit(cache=True)
+def _accel_batch(sigmas: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Accelerometer measurement model at every sigma point: f(v_air) (+ bias)."""
+    n = sigmas.shape[0]
+    out = np.empty((n, 3))
+    bias = sigmas.shape[1] >= 9
+    for k in range(n):
+        f = _specific_force(sigmas[k], R, rates, w_rot, p)
+        for i in range(3):
+            out[k, i] = f[i] + (sigmas[k, 6 + i] if bias else 0.0)
+    return out
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Tuning of the wind UKF. Noise values are 1-sigma; random-walk densities are per sqrt(s).
+
+    The accelerometer noise includes the model error the filter must tolerate (ESC noise on
+    the thrust, rotor speeds held between ESC samples), hence larger than the sensor's own.
+    """
+
+    accel_noise_m_s2: tuple[float, float, float] = (0.12, 0.12, 0.25)
+    gnss_vel_noise_m_s: tuple[float, float, float] = (0.08, 0.08, 0.1)
+    #: Unmodelled acceleration on the body velocity (attitude error x g, model error), m/s^2/sqrt(Hz).
+    vel_walk: tuple[float, float, float] = (0.4, 0.4, 0.6)
+    #: Wind random walk (Eq. 53), m/s per sqrt(s): sets how fast turbulence can be followed.
+    wind_walk: tuple[float, float, float] = (1.0, 1.0, 0.8)
+    #: Correlation time (s) of the vertical wind, modelled as first-order Gauss-Markov around
+    #: zero instead of a random walk; None = random walk (Eq. 53 as printed). Why: the
+    #: identified model's vertical-airspeed regressors saturate at the edge of its domain
+    #: (|w_air| > 1.5 m/s body axis, Table 3), so at the tilt a 10 m/s wind needs the
+    #: forces carry no information on the vertical wind, and a random walk would wander off.
+    vertical_wind_tau_s: float | None = 10.0
+    bias_states: bool = False
+    bias_walk_m_s2: float = 0.002  # per sqrt(s)
+    bias_sigma0_m_s2: float = 0.05
+    #: Initial state: zero wind with a large covariance (no prior, as in the paper).
+    wind_sigma0_m_s: float = 10.0
+    vel_sigma0_m_s: float = 2.0
+    #: Merwe scaled sigma points.
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+    max_step_s: float = 0.02  # longest single prediction step (gaps are bridged in sub-steps)
+    max_gap_s: float = 30.0  # longer gaps: predict at most this long (the covariance is huge by then)
+    gnss_history_s: float = 1.0  # how far back a GNSS time of validity may lie
+    direction_cutoff_hz: float = 0.2  # Butterworth low-pass on the wind direction (heading command)
+    direction_order: int = 2
+    direction_rate_hz: float = 250.0  # nominal output rate the Butterworth is designed for
+
+
+@dataclass
+class WindEstimate:
+    """One output of the estimator (all NED, m/s; angles in degrees FROM, 0 = north, 90 = east)."""
+
+    t: float
+    wind_ned: np.ndarray  # air-mass velocity, NED, m/s
+    cov_ned: np.ndarray  # 3x3 covariance of wind_ned, (m/s)^2
+    speed_h: float  # horizontal wind speed, m/s
+    speed_h_sigma: float
+    direction_deg: float  # from-direction, deg in [0, 360)
+    direction_sigma_deg: float
+    direction_filtered_deg: float  # causal Butterworth-filtered from-direction (heading command)
+    airspeed_body: np.ndarray = field(default_factory=lambda: np.zeros(3))  # FRD, m/s
+
+    @property
+    def sigma_ned(self) -> np.ndarray:
+        """1-sigma of each wind component, m/s (the +-2 sigma band is wind_ned +- 2 sigma)."""
+        return np.sqrt(np.maximum(np.diag(self.cov_ned), 0.0))
+
+
+class _UKF(UnscentedKalmanFilter):
+    """filterpy's UKF with the two Python loops over sigma points replaced by array code.
+
+    ``compute_process_sigmas`` runs the numba process kernel over all sigma points at once
+    and ``cross_variance`` is one matrix product; predict/update are filterpy's own.
+    """
+
+    proc_args: tuple = ()
+
+    def compute_process_sigmas(self, dt, fx=None, **fx_args):  # noqa: ARG002 - filterpy signature
+        sigmas = self.points_fn.sigma_points(self.x, self.P)
+        _process_batch(sigmas, self.sigmas_f, dt, *self.proc_args)
+
+    def cross_variance(self, x, z, sigmas_f, sigmas_h):
+        return ((sigmas_f - x).T * self.Wc) @ (sigmas_h - z)
+
+
+class WindEstimator:
+    """Wind UKF with asynchronous inputs. Feed samples in time order; read :meth:`estimate`.
+
+    Args:
+        params: vehicle parameters the force model uses (exact or ``perturbed``).
+        config: tuning, see :class:`EstimatorConfig`.
+
+    Usage::
+
+        est = WindEstimator(load_vehicle())
+        est.set_attitude(t, q)            # body->NED quaternion [w, x, y, z]
+        est.set_rotor_speeds(t, omega)    # rad/s (ESC telemetry or rpm_free model)
+        est.imu(t, accel_frd, gyro_frd)   # predict to t, update with the specific force
+        est.gnss_velocity(t_valid, v_ned) # update with a (delayed) NED velocity
+        e = est.estimate()                # WindEstimate
+    """
+
+    def __init__(self, params: VehicleParams, config: EstimatorConfig | None = None) -> None:
+        self.config = cfg = config or EstimatorConfig()
+        self.params = params
+        self._p = params.as_array()
+        self.n = 9 if cfg.bias_states else 6
+        points = MerweScaledSigmaPoints(self.n, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
+        self.ukf = _UKF(dim_x=self.n, dim_z=3, dt=0.004, hx=None, fx=None, points=points)
+        self.ukf.x = np.zeros(self.n)
+        P0 = [cfg.vel_sigma0_m_s**2] * 3 + [cfg.wind_sigma0_m_s**2] * 3
+        if cfg.bias_states:
+            P0 += [cfg.bias_sigma0_m_s2**2] * 3
+        self.ukf.P = np.diag(P0)
+        q = list(np.square(cfg.vel_walk)) + list(np.square(cfg.wind_walk))
+        if cfg.bias_states:
+            q += [cfg.bias_walk_m_s2**2] * 3
+        self._q_density = np.array(q)
+        self._R_accel = np.diag(np.square(cfg.accel_noise_m_s2))
+        self._R_gnss = np.diag(np.square(cfg.gnss_vel_noise_m_s))
+        self.t: float | None = None  # filter time, s
+        self._R: np.ndarray | None = None  # attitude DCM body->NED
+        self._q_att: np.ndarray | None = None
+        self._rates = np.zeros(3)
+        self._w_rot: np.ndarray | None = None
+        self._last_in: dict[str, float] = {}
+        self._fresh_sigmas = True  # sigmas_f reflect the current (x, P)
+        self._hist: deque[tuple[float, np.ndarray]] = deque()
+        self.rejected: Counter[str] = Counter()
+        self.accepted: Counter[str] = Counter()
+        self.direction = DirectionFilter(cfg.direction_cutoff_hz, cfg.direction_rate_hz, cfg.direction_order)
+        self._dir_filtered = float("nan")
+
+    # ------------------------------------------------------------------ input checks
+    def _reject(self, reason: str) -> bool:
+        self.rejected[reason] += 1
+        return False
+
+    def _check_time(self, stream: str, t: float) -> bool:
+        if not math.isfinite(t):
+            return self._reject(f"{stream}:bad_time")
+        last = self._last_in.get(stream)
+        if last is not None and t <= last:
+            return self._reject(f"{stream}:duplicate_or_out_of_order")
+        return True
+
+    @staticmethod
+    def _finite(a: np.ndarray, shape: int) -> bool:
+        return a.shape == (shape,) and bool(np.all(np.isfinite(a)))
+
+    # ------------------------------------------------------------------ inputs
+    def set_attitude(self, t: float, q_wxyz: np.ndarray) -> bool:
+        """Attitude quaternion [w, x, y, z], body FRD -> NED (from the AHRS/EKF). Held until the next."""
+        q = np.asarray(q_wxyz, dtype=float)
+        if not self._check_time("attitude", t):
+            return False
+        if not self._finite(q, 4) or abs(np.linalg.norm(q) - 1.0) > QUAT_NORM_TOL:
+            return self._reject("attitude:bad_value")
+        self._last_in["attitude"] = t
+        q = q / np.linalg.norm(q)
+        self._q_att = q
+        self._R = quat_to_dcm(q)
+        self.accepted["attitude"] += 1
+        return True
+
+    def set_rates(self, t: float, rates_frd: np.ndarray) -> bool:
+        """Body rates (FRD, rad/s) when they come separately from the IMU (e.g. MAVLink ATTITUDE)."""
+        w = np.asarray(rates_frd, dtype=float)
+        if not self._check_time("rates", t):
+            return False
+        if not self._finite(w, 3) or np.any(np.abs(w) > GYRO_LIMIT_RAD_S):
+            return self._reject("rates:bad_value")
+        self._last_in["rates"] = t
+        self._rates = w.copy()
+        return True
+
+    def set_rotor_speeds(self, t: float, w_rot: np.ndarray) -> bool:
+        """Rotor speeds (rad/s, rotor order of ``sitl.rotor_model``). Held until the next sample."""
+        w = np.asarray(w_rot, dtype=float)
+        if not self._check_time("rotors", t):
+            return False
+        if not self._finite(w, 4) or np.any(w < 0.0) or np.any(w > 2.0 * self._p[P_WMAX]):
+            return self._reject("rotors:bad_value")
+        self._last_in["rotors"] = t
+        self._w_rot = w.copy()
+        self.accepted["rotors"] += 1
+        return True
+
+    @property
+    def ready(self) -> bool:
+        """True once attitude and rotor speeds have been received (the model needs both)."""
+        return self._R is not None and self._w_rot is not None
+
+    def imu(self, t: float, accel_frd: np.ndarray, gyro_frd: np.ndarray | None = None) -> bool:
+        """IMU sample at time t: predict to t, then update with the specific force (FRD, m/s^2).
+
+        ``gyro_frd`` (rad/s) becomes the rates input; pass None when rates come via set_rates.
+        Returns False (and counts why) when the sample was rejected; the state is untouched then.
+        """
+        a = np.asarray(accel_frd, dtype=float)
+        if not self._check_time("imu", t):
+            return False
+        if not self._finite(a, 3) or np.any(np.abs(a) > ACCEL_LIMIT_M_S2):
+            return self._reject("imu:bad_value")
+        if gyro_frd is not None:
+            g = np.asarray(gyro_frd, dtype=float)
+            if not self._finite(g, 3) or np.any(np.abs(g) > GYRO_LIMIT_RAD_S):
+                return self._reject("imu:bad_value")
+        if self.t is not None and t <= self.t:
+            return self._reject("imu:older_than_filter")
+        if not self.ready:
+            return self._reject("imu:not_ready")
+        self._last_in["imu"] = t
+        if gyro_frd is not None:
+            self._rates = g.copy()
+        self.predict_to(t)
+        self._update(a, self._R_accel, "accel")
+        self.accepted["imu"] += 1
+        self._record_history()
+        return True
+
+    def gnss_velocity(self, t_valid: float, vel_ned: np.ndarray) -> bool:
+        """NED ground velocity (m/s) valid at ``t_valid`` (s; may lie up to gnss_history_s in the past)."""
+        v = np.asarray(vel_ned, dtype=float)
+        if not self._check_time("gnss", t_valid):
+            return False
+        if not self._finite(v, 3) or np.linalg.norm(v) > VELOCITY_LIMIT_M_S:
+            return self._reject("gnss:bad_value")
+        if not self.ready or self.t is None:
+            return self._reject("gnss:not_ready")
+        if t_valid > self.t + self.config.max_step_s:
+            # A fix from the future (clock mismatch): bring the filter up to it first.
+            self.predict_to(t_valid)
+        shift = np.zeros(3)
+        if t_valid < self.t:
+            past = self._history_at(t_valid)
+            if past is None:
+                return self._reject("gnss:stale")
+            shift = self._R @ self.ukf.x[0:3] - past
+        self._last_in["gnss"] = t_valid
+        self._update(v + shift, self._R_gnss, "gnss")
+        self.accepted["gnss"] += 1
+        return True
+
+    # ------------------------------------------------------------------ filter core
+    def predict_to(self, t: float) -> None:
+        """Predict the state to time t (s) with the held inputs; covariance grows over gaps."""
+        if self.t is None:
+            self.t = t
+            return
+        span = min(t - self.t, self.config.max_gap_s)
+        if span > 0.0 and self.ready:
+            n = max(1, math.ceil(span / self.config.max_step_s - 1e-9))
+            dt = span / n
+            tau = self.config.vertical_wind_tau_s
+            decay = math.exp(-dt / tau) if tau else 1.0
+            self.ukf.proc_args = (self._R, self._rates, self._w_rot, self._p, decay)
+            for _ in range(n):
+                self.ukf.Q = np.diag(self._q_density * dt)
+                self._guarded(lambda: self.ukf.predict(dt=dt))
+            self._fresh_sigmas = True
+        self.t = max(self.t, t)
+
+    def _update(self, z: np.ndarray, R: np.ndarray, kind: str) -> None:
+        ukf = self.ukf
+        if not self._fresh_sigmas:
+            # filterpy's update reuses the sigma points drawn after predict; a second update
+            # in the same step needs points drawn from the updated (x, P).
+            ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
+        if kind == "accel":
+            h = _accel_batch(ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p)
+        else:
+            Rm = self._R
+            h = ukf.sigmas_f[:, 0:3] @ Rm.T
+        it = iter(h)
+
+        def run() -> None:
+            ukf.update(z, R=R, hx=lambda _s: next(it))
+
+        self._guarded(run)
+        self._fresh_sigmas = False
+
+    def _guarded(self, op) -> None:
+        """Run a filter operation; on a numerical failure restore the state and count it."""
+        x, P = self.ukf.x.copy(), self.ukf.P.copy()
+        try:
+            op()
+            P = self.ukf.P
+            self.ukf.P = 0.5 * (P + P.T)
+            if not (np.all(np.isfinite(self.ukf.x)) and np.all(np.isfinite(self.ukf.P))):
+                raise np.linalg.LinAlgError("non-finite state")
+        except np.linalg.LinAlgError:
+            self.ukf.x, self.ukf.P = x, P + 1e-6 * np.eye(self.n)
+            self.rejected["numerical"] += 1
+
+    def _record_history(self) -> None:
+        v_ned = self._R @ self.ukf.x[0:3]
+        self._hist.append((self.t, v_ned))
+        horizon = self.t - self.config.gnss_history_s
+        while self._hist and self._hist[0][0] < horizon:
+            self._hist.popleft()
+
+    def _history_at(self, t: float) -> np.ndarray | None:
+        """NED velocity mean at time t, linearly interpolated from the history."""
+        h = self._hist
+        if not h or t < h[0][0]:
+            return None
+        prev = h[0]
+        for item in h:
+            if item[0] >= t:
+                t0, v0 = prev
+                t1, v1 = item
+                if t1 <= t0:
+                    return v1
+                a = (t - t0) / (t1 - t0)
+                return v0 + a * (v1 - v0)
+            prev = item
+        return h[-1][1]
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def wind_ned(self) -> np.ndarray:
+        """Wind (air-mass velocity) NED, m/s."""
+        return self.ukf.x[3:6].copy()
+
+    @property
+    def wind_cov(self) -> np.ndarray:
+        return self.ukf.P[3:6, 3:6].copy()
+
+    @property
+    def state(self) -> np.ndarray:
+        return self.ukf.x.copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self.ukf.P.copy()
+
+    def estimate(self, advance_direction: bool = True) -> WindEstimate:
+        """Current estimate. ``advance_direction`` feeds the Butterworth one sample (call once per step)."""
+        W = self.ukf.x[3:6].copy()
+        C = self.ukf.P[3:6, 3:6].copy()
+        s, s_sig, d, d_sig = speed_direction(W, C)
+        if advance_direction:
+            self._dir_filtered = self.direction.update(d)
+        v_air = np.zeros(3)
+        if self._R is not None:
+            v_air = self.ukf.x[0:3] - self._R.T @ W
+        return WindEstimate(
+            t=float(self.t) if self.t is not None else float("nan"),
+            wind_ned=W,
+            cov_ned=C,
+            speed_h=s,
+            speed_h_sigma=s_sig,
+            direction_deg=d,
+            direction_sigma_deg=d_sig,
+            direction_filtered_deg=self._dir_filtered,
+            airspeed_body=v_air,
+        )
