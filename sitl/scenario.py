@@ -79,7 +79,7 @@ class Scenario:
     sensors: SensorSuiteConfig = field(default_factory=SensorSuiteConfig)
     gains: ControllerGains = field(default_factory=ControllerGains)
     flight: FlightConfig = field(default_factory=FlightConfig)
-    plume: dict[str, Any] | None = None  # raw [plume] table, parsed by sitl.plume_config
+    plume: dict[str, Any] | None = None  # raw [plume] table, parsed by sitl.plume_attach
     source_path: str = ""
 
     def with_seed(self, seed: int) -> Scenario:
