@@ -133,13 +133,13 @@ class EstimatorConfig:
     #: Unmodelled acceleration on the body velocity (attitude error x g, model error), m/s^2/sqrt(Hz).
     vel_walk: tuple[float, float, float] = (0.4, 0.4, 0.6)
     #: Wind random walk (Eq. 53), m/s per sqrt(s): sets how fast turbulence can be followed.
-    wind_walk: tuple[float, float, float] = (1.0, 1.0, 0.8)
+    wind_walk: tuple[float, float, float] = (1.5, 1.5, 1.5)
     #: Correlation time (s) of the vertical wind, modelled as first-order Gauss-Markov around
     #: zero instead of a random walk; None = random walk (Eq. 53 as printed). Why: the
     #: identified model's vertical-airspeed regressors saturate at the edge of its domain
     #: (|w_air| > 1.5 m/s body axis, Table 3), so at the tilt a 10 m/s wind needs the
     #: forces carry no information on the vertical wind, and a random walk would wander off.
-    vertical_wind_tau_s: float | None = 10.0
+    vertical_wind_tau_s: float | None = 3.0
     bias_states: bool = False
     bias_walk_m_s2: float = 0.002  # per sqrt(s)
     bias_sigma0_m_s2: float = 0.05
