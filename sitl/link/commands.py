@@ -10,6 +10,7 @@ command the vehicle cannot do in its state: TEMPORARILY_REJECTED or DENIED, as P
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import TYPE_CHECKING
 
@@ -23,6 +24,8 @@ from sitl.sensors import geodetic_to_ned
 
 if TYPE_CHECKING:
     from sitl.link.runner import SitlLink
+
+log = logging.getLogger(__name__)
 
 ACCEPTED = mav.MAV_RESULT_ACCEPTED
 DENIED = mav.MAV_RESULT_DENIED
@@ -78,6 +81,7 @@ class CommandHandler:
         try:
             result = self.execute(cmd, p, latlon, frame, link)
         except Exception:
+            log.warning("command %d failed", cmd, exc_info=True)
             self.sitl.endpoint.counters["handler_errors"] += 1
             result = FAILED
         if result is None:
@@ -200,11 +204,6 @@ class CommandHandler:
                 link,
             )  # fmt: skip
             return True
-        if msg_id == mav.MAVLINK_MSG_ID_PROTOCOL_VERSION:
-            ep.send(mav.MAVLink_protocol_version_message(200, 100, 200, b"\0" * 8, b"\0" * 8), link)
-            return True
-        if msg_id == mav.MAVLINK_MSG_ID_PARAM_VALUE:
-            return False
         msgs = sitl.streams.build_once(msg_id)
         if not msgs:
             return False
