@@ -8,7 +8,7 @@ Set current: MISSION_SET_CURRENT. A rejected upload leaves the previous plan in 
 
 Mission items: NAV_WAYPOINT (param1 hold s, param2 acceptance radius m, param4 yaw deg),
 NAV_TAKEOFF (z), NAV_LAND (x, y or 0/0 = here), NAV_LOITER_TIME (param1 s), NAV_RETURN_TO_LAUNCH,
-DO_CHANGE_SPEED (param2 m/s). Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
+DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is). Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
 (above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
 EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
 NAV_FENCE_RETURN_POINT (stored, not used). Errors use the MAV_MISSION_RESULT codes.
@@ -50,6 +50,7 @@ NAV_KINDS = {
     mav.MAV_CMD_NAV_LOITER_TIME: ItemKind.LOITER_TIME,
     mav.MAV_CMD_NAV_RETURN_TO_LAUNCH: ItemKind.RTL,
     mav.MAV_CMD_DO_CHANGE_SPEED: ItemKind.CHANGE_SPEED,
+    mav.MAV_CMD_NAV_DELAY: ItemKind.LOITER_TIME,  # MAVSDK's loiter_time_s: wait where the vehicle is
 }
 FENCE_CMDS = {
     mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
@@ -216,6 +217,10 @@ class MissionProtocol:
             return
         if kind == ItemKind.RTL:
             return
+        if cmd == mav.MAV_CMD_NAV_DELAY:
+            if not (math.isfinite(it["param1"]) and 0 <= it["param1"] <= 86400):
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, f"delay {it['param1']} s (time-of-day delays unsupported)")
+            return
         if frame not in POSITION_FRAMES:
             raise ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {frame} not supported")
         if kind in (ItemKind.WAYPOINT, ItemKind.LOITER_TIME):
@@ -260,6 +265,8 @@ class MissionProtocol:
             return MissionItem(kind, speed_m_s=math.nan if s == -1 else float(s))
         if kind == ItemKind.RTL:
             return MissionItem(kind)
+        if it["command"] == mav.MAV_CMD_NAV_DELAY:
+            return MissionItem(kind, hold_s=float(it["param1"]), acceptance_radius_m=1.0)
         ned = self._ned(it)
         yaw = math.radians(it["param4"]) if math.isfinite(it["param4"]) else math.nan
         if kind == ItemKind.TAKEOFF:

@@ -16,7 +16,7 @@ import math
 import threading
 import time
 
-from sitl.flight_modes import Mode
+from sitl.flight_modes import ItemKind, Mode
 from sitl.link.commands import CommandHandler
 from sitl.link.dialect import mavlink as mav
 from sitl.link.endpoint import Endpoint, Link, targets_us
@@ -130,6 +130,10 @@ class SitlLink:
             fc.events.clear()
         if fc.mission_reached:
             for i in fc.mission_reached:
+                # PX4 hands a NAV_RETURN_TO_LAUNCH item over to RTL mode without reporting it
+                # reached, and MAVSDK's is_mission_finished() counts on exactly that.
+                if i < len(fc.mission) and fc.mission[i].kind == ItemKind.RTL:
+                    continue
                 out.append(mav.MAVLink_mission_item_reached_message(i))
             fc.mission_reached.clear()
         if fc.mission_index != self._last_index:
