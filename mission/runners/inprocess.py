@@ -1,0 +1,208 @@
+"""In-process runner: simulator + (estimator) + strategy in lockstep, no I/O, for batch evaluation.
+
+One trial: build the Simulation with the vehicle waiting on the ground, arm, take off to the
+strategy's search altitude, enter offboard, then every strategy tick (``rate_hz``, 10 Hz by
+default): advance the simulation one tick, drain the sensor samples, feed the wind source
+(the estimator in ``estimated`` mode), build the Observation from the latest GNSS fix and
+chemical reading, call the strategy and send its setpoint with ``fc.offboard_setpoint``.
+Stops on completion (declared + descended), the time limit (the scenario's duration), a
+geofence exit or a crash.
+
+Observation inputs are only what a real vehicle has: the latest GNSS fix (position and
+velocity, with the receiver's noise and 0.1 s latency), the chemical reading, and the wind
+source (the simulator's truth only in the explicit ``oracle`` mode). The true source position
+is read only to score the result.
+
+Units SI, frames NED; times are simulation seconds from t = 0 (on the ground, before take-off).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from mission.strategies import make_strategy
+from mission.strategies.base import Observation, Setpoint
+from mission.strategies.params import CommonParams, load_params
+from mission.wind_source import make_wind_source
+from sitl.flight_modes import LandedState, Mode
+from sitl.scenario import Scenario, load_scenario
+from sitl.simulation import Simulation
+
+#: A declaration within this horizontal distance of the true source is a success [m].
+SUCCESS_RADIUS_M = 5.0
+
+FAILURE_CAUSES = ("declared-far", "timeout", "geofence", "crash", "takeoff")
+
+
+@dataclass
+class TrialResult:
+    """Outcome of one trial (SI units, NED, times from t = 0 on the ground).
+
+    success: declared within ``SUCCESS_RADIUS_M`` of the true source, horizontally.
+    declared_ned: the declared source position, or None.
+    error_m: horizontal distance declared - true source (nan without a declaration).
+    time_s: simulation time of the declaration (nan without one).
+    path_m: horizontal path flown from the end of the take-off to the declaration (or the end).
+    start_distance_m: horizontal distance from the start to the true source.
+    cause: "" on success, else one of FAILURE_CAUSES.
+    """
+
+    scenario: str
+    strategy: str
+    wind: str
+    seed: int
+    success: bool
+    declared_ned: list[float] | None
+    confidence: float
+    error_m: float
+    time_s: float
+    path_m: float
+    start_distance_m: float
+    cause: str
+    end_state: str = ""
+    n_detections: int = 0
+    wall_s: float = 0.0
+    track: list[list[float]] = field(default_factory=list)  # [t, n, e, d] per second when asked
+
+    @property
+    def path_ratio(self) -> float:
+        return self.path_m / self.start_distance_m if self.start_distance_m > 0 else math.nan
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["path_ratio"] = self.path_ratio
+        return d
+
+
+def run_trial(
+    scenario: str | Scenario,
+    strategy: str,
+    wind: str = "estimated",
+    seed: int | None = None,
+    params: CommonParams | None = None,
+    params_path: str | None = None,
+    time_limit_s: float | None = None,
+    geofence_m: float = 250.0,
+    keep_track: bool = False,
+) -> TrialResult:
+    """Fly one seeded search trial in lockstep and score it.
+
+    Args:
+        scenario: built-in scenario name, .toml path or Scenario (must have a ``[plume]``).
+        strategy: ``anemotaxis``, ``surge-cast`` or ``zigzag``.
+        wind: ``estimated``, ``oracle`` or ``none``.
+        seed: simulation seed (default: the scenario's); the strategy's seeded choices use it too.
+        params / params_path: strategy parameters (default: the strategy's defaults).
+        time_limit_s: simulated time limit (default: the scenario's duration).
+        geofence_m: horizontal distance from home beyond which the trial is aborted [m].
+        keep_track: record the position once per second in ``TrialResult.track``.
+    """
+    import time as _time
+
+    wall0 = _time.perf_counter()
+    sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
+    if sc.plume is None:
+        raise ValueError(f"scenario {sc.name!r} has no [plume] table: nothing to search for")
+    p = params if params is not None else load_params(strategy, params_path)
+    sim = Simulation(sc, seed=seed, autostart_route=False, record_truth=(wind == "estimated"))
+    seed = sim.seed
+    strat = make_strategy(strategy)
+    home = np.array([sc.start.position_ned[0], sc.start.position_ned[1], 0.0])
+    strat.reset(home, p, seed=seed)
+    ws = make_wind_source(wind, sim, p)
+    limit = sc.duration_s if time_limit_s is None else float(time_limit_s)
+    src = np.asarray(sim.plume.config.sources[0].position_ned, dtype=float)
+    start_dist = float(np.hypot(*(src[0:2] - home[0:2])))
+    dt = 1.0 / p.rate_hz
+    fc = sim.fc
+
+    gnss = None
+    chem_value, chem_det = 0.0, False
+    track: list[list[float]] = []
+    path = 0.0
+    prev_pos: np.ndarray | None = None
+    sp = Setpoint()
+    cause = ""
+    t_declared = math.nan
+    offboard = False
+    ok, why = fc.arm()
+    if not ok:
+        raise RuntimeError(f"cannot arm: {why}")
+    fc.takeoff(p.altitude_m)
+    k = 0
+    while True:
+        k += 1
+        sim.run_until(k * dt)
+        out = sim.drain()
+        wind_info = ws.update(out)  # the estimator runs through the take-off too
+        if out["gnss"]:
+            gnss = out["gnss"][-1]
+        chem = out.get("chem", [])
+        if chem:
+            chem_value, chem_det = chem[-1].value_mg_m3, chem[-1].detected
+        t = sim.t
+        if keep_track and k % round(p.rate_hz) == 0:
+            track.append([round(t, 2), *(round(float(v), 2) for v in sim.position)])
+        if sim.crashed:
+            cause = "crash"
+            break
+        if t >= limit - 1e-9:
+            cause = "timeout" if not offboard else "timeout"
+            break
+        if not offboard:
+            # Take-off: the autopilot climbs and switches to hold when it reaches the altitude.
+            if fc.mode == Mode.HOLD and fc.landed_state == LandedState.IN_AIR:
+                offboard = True
+            elif t > 30.0:
+                cause = "takeoff"
+                break
+            else:
+                continue
+        pos = sim.position  # truth only for the path length and the geofence (scoring)
+        if prev_pos is not None:
+            path += float(np.hypot(*(pos[0:2] - prev_pos[0:2])))
+        prev_pos = pos
+        if float(np.hypot(*(pos[0:2] - home[0:2]))) > geofence_m:
+            cause = "geofence"
+            break
+        if gnss is None:
+            continue
+        obs = Observation(
+            t=t, position_ned=np.asarray(gnss.pos_ned, dtype=float), velocity_ned=np.asarray(gnss.vel_ned, dtype=float),
+            chem_mg_m3=float(chem_value), detected=bool(chem_det), chem_new=bool(chem), wind=wind_info,
+        )
+        sp = strat.update(obs)
+        if sp.declared_source_ned is not None and math.isnan(t_declared):
+            t_declared = float(sp.info.get("t_declared", t))
+            path_at_decl = path
+        fc.offboard_setpoint(t, pos=sp.position_ned, vel=sp.velocity_ned, yaw=sp.yaw_rad)
+        if fc.mode != Mode.OFFBOARD:
+            fc.set_mode(Mode.OFFBOARD)
+        if sp.done:
+            break
+    if sp.done or (not math.isnan(t_declared) and cause in ("timeout",)):
+        # Finished (or declared and then ran out of time during the descent).
+        pass
+    declared = sp.declared_source_ned
+    if declared is not None:
+        err = float(np.hypot(*(declared[0:2] - src[0:2])))
+        success = err <= SUCCESS_RADIUS_M and cause != "crash"
+        if not success and not cause:
+            cause = "declared-far"
+        elif success:
+            cause = ""
+        path = path_at_decl
+    else:
+        err = math.nan
+        success = False
+        cause = cause or "timeout"
+    return TrialResult(
+        scenario=sc.name, strategy=strategy, wind=wind, seed=seed, success=success,
+        declared_ned=None if declared is None else [round(float(v), 3) for v in declared],
+        confidence=round(float(sp.confidence), 3), error_m=err, time_s=t_declared, path_m=path,
+        start_distance_m=start_dist, cause=cause, end_state=sp.state,
+        n_detections=strat.memory.n_detect, wall_s=_time.perf_counter() - wall0, track=track,
+    )

@@ -1,0 +1,292 @@
+"""Machinery shared by the strategies: plume memory, the upwind axis, crosswind sweeps,
+the "plume ended" declaration rule and the final descent.
+
+Frames and units: NED, SI; headings in rad (0 = north, clockwise). Horizontal vectors are
+(north, east). ``u`` is the unit upwind vector (toward where the wind comes from), ``n`` the
+unit crosswind vector 90 deg to its right (u rotated clockwise: n = (-u_e, u_n)).
+
+Declaration rule (all strategies): the candidate source is the most-upwind detection (along
+the current upwind axis), each detection placed where the vehicle was ``sensor_lag_s``
+before the reading (the sensor's first-order lag would otherwise push the candidate upwind).
+The plume "ends" at the candidate when the vehicle has searched at least ``overshoot_m``
+upwind of it and then either (a) has detected nothing for ``declare_after_s``, or (b) lost
+the plume there a second time (re-found it downwind, surged, overshot the same candidate
+again, within ``REPEAT_TOL_M``) and has detected nothing for ``lost_s``. (b) stops the
+surge -> overshoot -> drift back -> surge loop that a source produces.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from mission.strategies.base import Observation, Setpoint, heading_of, heading_vec
+from mission.strategies.params import CommonParams
+
+#: Two losses whose candidates lie within this distance count as the same plume end [m].
+REPEAT_TOL_M = 3.0
+
+
+def crosswind(u: np.ndarray) -> np.ndarray:
+    """Unit crosswind vector 90 deg clockwise (to the right) of the unit upwind vector ``u``."""
+    return np.array([-u[1], u[0]])
+
+
+class PlumeMemory:
+    """Detections (time, lag-corrected horizontal position, value) and every sample for the
+    chemotaxis gradient; times in s, positions m (north, east), values mg/m^3."""
+
+    def __init__(self, params: CommonParams) -> None:
+        self.p = params
+        self.det_t: list[float] = []
+        self.det_pos: list[np.ndarray] = []
+        self.det_val: list[float] = []
+        self.samples: deque[tuple[float, np.ndarray, float]] = deque()
+        self.last_detect_t = -math.inf
+        self.first_detect_t = math.nan
+        self.n_detect = 0
+
+    def add(self, obs: Observation) -> bool:
+        """Record the observation's reading if it is new; returns True on a new detection."""
+        if not obs.chem_new:
+            return False
+        pos = obs.position_ned[0:2] - self.p.sensor_lag_s * obs.velocity_ned[0:2]
+        self.samples.append((obs.t, pos, obs.chem_mg_m3 if obs.detected else 0.0))
+        while self.samples and self.samples[0][0] < obs.t - self.p.memory_s:
+            self.samples.popleft()
+        if not obs.detected:
+            return False
+        self.det_t.append(obs.t)
+        self.det_pos.append(pos)
+        self.det_val.append(obs.chem_mg_m3)
+        self.last_detect_t = obs.t
+        if self.n_detect == 0:
+            self.first_detect_t = obs.t
+        self.n_detect += 1
+        return True
+
+    def since_detect(self, t: float) -> float:
+        """Seconds since the last detection (inf before the first)."""
+        return t - self.last_detect_t
+
+    def most_upwind(self, u: np.ndarray) -> np.ndarray | None:
+        """Lag-corrected position (north, east) of the detection furthest along ``u``."""
+        if not self.det_pos:
+            return None
+        P = np.asarray(self.det_pos)
+        return P[int(np.argmax(P @ u))].copy()
+
+    def n_near(self, point: np.ndarray, radius_m: float) -> int:
+        """Detections within ``radius_m`` of ``point`` (horizontal)."""
+        if not self.det_pos:
+            return 0
+        d = np.linalg.norm(np.asarray(self.det_pos) - point, axis=1)
+        return int(np.count_nonzero(d <= radius_m))
+
+    def centerline(self, t: float, n: np.ndarray) -> float | None:
+        """Crosswind coordinate (m along ``n``) of the plume centreline: the mean of the recent
+        detections' crosswind coordinates, weighted by log concentration (a few strong hits near
+        the axis outweigh many weak ones at the edge); None without recent detections."""
+        k = len(self.det_t)
+        lo = t - self.p.memory_s
+        i = k
+        while i > 0 and self.det_t[i - 1] >= lo:
+            i -= 1
+        if i == k:
+            return None
+        P = np.asarray(self.det_pos[i:])
+        w = np.log1p(np.asarray(self.det_val[i:]) / 0.05)
+        return float((P @ n) @ w / w.sum())
+
+    def gradient_heading(self) -> float | None:
+        """Heading (rad) of the concentration gradient over the recent samples (least squares on
+        log(1 + c / 0.05)), or None when it is not determined (too few detections, no spread)."""
+        if len(self.samples) < 10:
+            return None
+        P = np.array([s[1] for s in self.samples])
+        c = np.log1p(np.array([s[2] for s in self.samples]) / 0.05)
+        if np.count_nonzero(c) < 3:
+            return None
+        Pc = P - P.mean(axis=0)
+        A = Pc.T @ Pc
+        if np.linalg.eigvalsh(A)[0] < 1.0 * len(P):  # samples along a line: one direction unknown
+            A = A + np.eye(2) * len(P)  # ridge: leave the unknown direction at zero
+        g = np.linalg.solve(A, Pc.T @ (c - c.mean()))
+        if float(np.hypot(g[0], g[1])) < 1e-3:
+            return None
+        return heading_of(g)
+
+
+class UpwindAxis:
+    """The upwind heading the strategy works with: the filtered wind direction when a wind
+    source gives one; without wind (``none`` mode, pure chemotaxis), an estimate from the
+    concentration gradient, starting from ``initial_heading_deg`` (or a seeded draw)."""
+
+    def __init__(self, params: CommonParams, seed: int) -> None:
+        self.p = params
+        if math.isnan(params.initial_heading_deg):
+            rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xA215]))
+            self.heading = float(rng.uniform(-math.pi, math.pi))
+        else:
+            self.heading = math.radians(params.initial_heading_deg)
+        self.source = "initial"
+
+    def update(self, obs: Observation, memory: PlumeMemory, dt: float) -> np.ndarray:
+        """Current unit upwind vector (north, east)."""
+        w = obs.wind
+        if w is not None and w.speed_m_s >= self.p.min_wind_m_s and math.isfinite(w.upwind_rad):
+            self.heading = w.upwind_rad
+            self.source = "wind"
+        elif w is None:
+            g = memory.gradient_heading()
+            if g is not None:
+                # Turn toward the gradient at a bounded rate (the gradient estimate is noisy).
+                a = min(1.0, dt / 5.0)
+                v = (1 - a) * heading_vec(self.heading) + a * heading_vec(g)
+                self.heading = heading_of(v)
+                self.source = "gradient"
+        return heading_vec(self.heading)
+
+
+class Sweep:
+    """Crosswind sweeps of growing half-width about a centre line, drifting downwind: the
+    moth's cast and the zig-zag's lost search. Positions are crosswind coordinates (m along n)."""
+
+    def __init__(self, center: float, half_width: float, growth: float, max_half_width: float,
+                 direction: float) -> None:
+        self.center = center
+        self.half = half_width
+        self.growth = growth
+        self.max_half = max_half_width
+        self.dir = 1.0 if direction >= 0 else -1.0
+        self.n_legs = 0
+
+    def velocity(self, c_now: float, u: np.ndarray, n: np.ndarray, speed: float, drift: float) -> np.ndarray:
+        """Horizontal velocity (north, east), m/s; flips at each end and grows the width."""
+        target = self.center + self.dir * self.half
+        if (target - c_now) * self.dir <= 0.0:
+            self.dir = -self.dir
+            self.n_legs += 1
+            if self.n_legs % 2 == 0:  # a full sweep (both sides) without finding anything
+                self.half = min(self.half * self.growth, self.max_half)
+        v_cross = math.sqrt(max(speed * speed - drift * drift, 0.0))
+        return self.dir * v_cross * n - drift * u
+
+
+class BaseStrategy:
+    """Common frame of the strategies: altitude hold, axis, memory, declaration, descent.
+
+    Subclasses implement :meth:`_search` (horizontal velocity and state name while searching).
+    """
+
+    name = "base"
+
+    def __init__(self) -> None:
+        self.p: CommonParams | None = None
+
+    def reset(self, start_ned: np.ndarray, params: CommonParams, seed: int = 0) -> None:
+        self.p = params
+        self.start = np.asarray(start_ned, dtype=float).copy()
+        self.memory = PlumeMemory(params)
+        self.axis = UpwindAxis(params, seed)
+        self.t_prev: float | None = None
+        self.declared: np.ndarray | None = None
+        self.t_declared = math.nan
+        self.confidence = 0.0
+        self.t_over = math.nan  # time the descent point was reached
+        self.overshoot_reached = False
+        self.loss_candidates: list[float] = []  # upwind coordinate of each loss's candidate
+        self._loss_counted = False
+        self._reset()
+
+    def _reset(self) -> None:
+        """Subclass state."""
+
+    def _search(self, obs: Observation, u: np.ndarray, n: np.ndarray, new_det: bool, dt: float
+                ) -> tuple[np.ndarray, str]:
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ helpers
+    def _vz(self, obs: Observation, altitude_m: float) -> float:
+        """Vertical velocity (m/s, NED) holding ``altitude_m`` above the start point."""
+        z_target = self.start[2] - altitude_m  # start_ned is the point on the ground (home)
+        return float(np.clip(1.0 * (z_target - obs.position_ned[2]), -1.0, 1.0))
+
+    def _check_declare(self, t: float, pos_ne: np.ndarray, u: np.ndarray) -> bool:
+        """The plume-ended rule (module docstring); sets the declaration when it fires."""
+        m = self.memory
+        p = self.p
+        cand = m.most_upwind(u)
+        if cand is None:
+            return False
+        lost = m.since_detect(t)
+        if lost < p.lost_s:
+            self.overshoot_reached = False
+            self._loss_counted = False
+            return False
+        beyond = float((pos_ne - cand) @ u)
+        if beyond >= p.overshoot_m:
+            self.overshoot_reached = True
+        if not self.overshoot_reached:
+            return False
+        c_up = float(cand @ u)
+        if not self._loss_counted:
+            self._loss_counted = True
+            repeat = any(abs(c_up - c) <= REPEAT_TOL_M for c in self.loss_candidates)
+            self.loss_candidates.append(c_up)
+            if repeat:
+                return self._declare(t, cand, repeat=True)
+        if lost >= p.declare_after_s:
+            return self._declare(t, cand, repeat=False)
+        return False
+
+    def _declare(self, t: float, cand: np.ndarray, repeat: bool) -> bool:
+        z_src = self.start[2] - self.p.descend_altitude_m
+        self.declared = np.array([cand[0], cand[1], z_src])
+        self.t_declared = t
+        n = self.memory.n_near(cand, 5.0)
+        # Confidence: support of the candidate by nearby detections, and whether the plume end
+        # was confirmed by a second loss at the same place.
+        self.confidence = float((1.0 - math.exp(-n / 10.0)) * (1.0 if repeat else 0.8))
+        return True
+
+    # ------------------------------------------------------------------ tick
+    def update(self, obs: Observation) -> Setpoint:
+        if self.p is None:
+            raise RuntimeError(f"{self.name}: reset() must be called before update()")
+        p = self.p
+        dt = 1.0 / p.rate_hz if self.t_prev is None else max(obs.t - self.t_prev, 0.0)
+        self.t_prev = obs.t
+        new_det = self.memory.add(obs)
+        u = self.axis.update(obs, self.memory, dt)
+        n = crosswind(u)
+        pos_ne = obs.position_ned[0:2]
+        if self.declared is None and self._check_declare(obs.t, pos_ne, u):
+            pass
+        if self.declared is not None:
+            return self._descend(obs, u)
+        v_ne, state = self._search(obs, u, n, new_det, dt)
+        vel = np.array([v_ne[0], v_ne[1], self._vz(obs, p.altitude_m)])
+        return Setpoint(velocity_ned=vel, yaw_rad=heading_of(u), state=state,
+                        info={"upwind_deg": math.degrees(heading_of(u)) % 360.0})
+
+    def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
+        """Fly over the declared point, descend to ``descend_altitude_m``, hold, then done."""
+        p = self.p
+        d = self.declared[0:2] - obs.position_ned[0:2]
+        dist = float(np.hypot(d[0], d[1]))
+        v = d * min(p.speed_m_s, 0.8 * dist) / max(dist, 1e-6)
+        if dist < 1.0:
+            vz = self._vz(obs, p.descend_altitude_m)
+            if math.isnan(self.t_over) and abs(obs.position_ned[2] - (self.start[2] - p.descend_altitude_m)) < 0.3:
+                self.t_over = obs.t
+        else:
+            vz = self._vz(obs, p.altitude_m)
+        done = not math.isnan(self.t_over) and obs.t - self.t_over >= p.descend_hold_s
+        return Setpoint(
+            velocity_ned=np.array([v[0], v[1], vz]), yaw_rad=heading_of(u), done=done,
+            declared_source_ned=self.declared.copy(), confidence=self.confidence,
+            state="done" if done else "descend", info={"t_declared": self.t_declared},
+        )

@@ -1,0 +1,184 @@
+"""Strategy parameters: dataclasses with ranges, loaded from a TOML ``[strategy]`` table.
+
+A strategy file is TOML. Keys common to every strategy sit in ``[strategy]``; keys of one
+strategy in its sub-table (``[strategy.anemotaxis]``, ``[strategy.surge-cast]``,
+``[strategy.zigzag]``), which may also override a common key for that strategy only::
+
+    [strategy]
+    altitude_m = 3.0              # search altitude above the start point [m]
+    speed_m_s = 2.5               # ground speed while searching [m/s]
+    wind_filter_cutoff_hz = 0.05  # Butterworth cutoff on the upwind direction [Hz]
+
+    [strategy.surge-cast]
+    cast_half_width_m = 4.0
+
+Every value is checked against the range in the field's metadata; an error names the field,
+the value and the allowed range. Units: SI (m, s, m/s, Hz); angles in degrees in the file.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+
+class ParamError(ValueError):
+    """A strategy parameter is missing, unknown or out of range (the message names it)."""
+
+
+def _p(default: float, lo: float, hi: float, doc: str) -> Any:
+    return field(default=default, metadata={"range": (lo, hi), "doc": doc})
+
+
+@dataclass(frozen=True)
+class CommonParams:
+    """Parameters every strategy uses (SI units; angles in degrees)."""
+
+    altitude_m: float = _p(3.0, 0.5, 100.0, "search altitude above the start point [m]")
+    speed_m_s: float = _p(2.5, 0.2, 10.0, "ground speed while searching [m/s]")
+    rate_hz: float = _p(10.0, 1.0, 50.0, "strategy tick rate the runner calls update() at [Hz]")
+    wind_filter_cutoff_hz: float = _p(0.05, 0.001, 5.0, "low-pass cutoff on the upwind direction [Hz]")
+    wind_filter_order: int = _p(2, 1, 8, "Butterworth order of the direction filter")
+    min_wind_m_s: float = _p(0.5, 0.0, 10.0, "below this horizontal wind speed the direction is ignored [m/s]")
+    lost_s: float = _p(2.0, 0.1, 60.0, "time without detection after which the plume counts as lost [s]")
+    declare_after_s: float = _p(10.0, 0.5, 300.0, "time lost, having searched upwind of the best point, "
+                                 "before declaring [s]")
+    overshoot_m: float = _p(4.0, 0.0, 50.0, "how far upwind of the most-upwind detection the vehicle must "
+                            "have searched before declaring [m]")
+    sensor_lag_s: float = _p(0.5, 0.0, 10.0, "chemical sensor lag: a detection is attributed to the position "
+                             "this long before it arrived [s]")
+    memory_s: float = _p(20.0, 1.0, 600.0, "time window of detections used for the plume centreline [s]")
+    centerline_gain: float = _p(0.4, 0.0, 5.0, "lateral velocity per metre off the estimated centreline [1/s]")
+    descend_altitude_m: float = _p(1.5, 0.3, 100.0, "altitude of the final descent over the declared source [m]")
+    descend_hold_s: float = _p(2.0, 0.0, 60.0, "time spent over the declared source before stopping [s]")
+    initial_heading_deg: float = _p(math.nan, -360.0, 360.0, "initial search heading without wind information "
+                                    "[deg, 0 = north]; NaN: drawn from the trial seed")
+
+
+@dataclass(frozen=True)
+class AnemotaxisParams(CommonParams):
+    """Anemotaxis (paper Figs. 16-18): fly upwind on the filtered wind direction."""
+
+    speed_m_s: float = _p(2.0, 0.2, 10.0, "ground speed upwind [m/s]")
+
+
+@dataclass(frozen=True)
+class SurgeCastParams(CommonParams):
+    """Silkworm moth surge-cast."""
+
+    surge_persist_s: float = _p(1.5, 0.0, 30.0, "keep surging this long after the last detection [s]")
+    cast_half_width_m: float = _p(4.0, 0.5, 100.0, "first cast half-amplitude, crosswind [m]")
+    cast_growth: float = _p(1.5, 1.0, 5.0, "cast amplitude factor after each full sweep")
+    cast_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest cast half-amplitude [m]")
+    cast_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift while casting [m/s]")
+
+
+@dataclass(frozen=True)
+class ZigzagParams(CommonParams):
+    """Dung-beetle zig-zag."""
+
+    angle_deg: float = _p(45.0, 5.0, 85.0, "leg angle off the upwind direction [deg]")
+    edge_s: float = _p(1.0, 0.1, 30.0, "time without detection in a leg that marks the plume edge [s]")
+    leg_max_half_width_m: float = _p(12.0, 1.0, 200.0, "turn back this far off the centreline anyway [m]")
+    lost_half_width_m: float = _p(6.0, 0.5, 200.0, "first sweep half-width once the plume is lost [m]")
+    lost_growth: float = _p(1.5, 1.0, 5.0, "sweep width factor after each lost sweep")
+    lost_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest lost sweep half-width [m]")
+
+
+#: Fields where NaN means "not set" (documented per field).
+NAN_ALLOWED = frozenset({"initial_heading_deg"})
+
+PARAM_CLASSES: dict[str, type[CommonParams]] = {
+    "anemotaxis": AnemotaxisParams,
+    "surge-cast": SurgeCastParams,
+    "zigzag": ZigzagParams,
+}
+
+
+def _check(cls_name: str, name: str, value: Any, lo: float, hi: float, integer: bool) -> float | int:
+    where = f"strategy.{cls_name}.{name}" if cls_name else f"strategy.{name}"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParamError(f"{where} = {value!r}: expected a number in [{lo}, {hi}]")
+    if integer and (not float(value).is_integer()):
+        raise ParamError(f"{where} = {value!r}: expected an integer in [{lo}, {hi}]")
+    if math.isnan(value) and name in NAN_ALLOWED:
+        return float(value)
+    if not (lo <= value <= hi):
+        raise ParamError(f"{where} = {value!r}: allowed range is [{lo}, {hi}]")
+    return int(value) if integer else float(value)
+
+
+def validate(params: CommonParams, strategy: str = "") -> CommonParams:
+    """Check every field of ``params`` against its range (ParamError naming the field)."""
+    for f in fields(params):
+        lo, hi = f.metadata["range"]
+        v = getattr(params, f.name)
+        _check(strategy, f.name, v, lo, hi, isinstance(f.default, int) and not isinstance(f.default, bool))
+    if params.descend_altitude_m > params.altitude_m:
+        raise ParamError(
+            f"strategy.descend_altitude_m = {params.descend_altitude_m}: must not exceed "
+            f"strategy.altitude_m = {params.altitude_m}"
+        )
+    if params.wind_filter_cutoff_hz >= params.rate_hz / 2.0:
+        raise ParamError(
+            f"strategy.wind_filter_cutoff_hz = {params.wind_filter_cutoff_hz}: must be below "
+            f"rate_hz / 2 = {params.rate_hz / 2.0}"
+        )
+    return params
+
+
+def params_from_table(strategy: str, table: dict[str, Any] | None) -> CommonParams:
+    """Parameters of ``strategy`` from a parsed ``[strategy]`` table (None: defaults)."""
+    if strategy not in PARAM_CLASSES:
+        raise ParamError(f"unknown strategy {strategy!r}: choose one of {', '.join(PARAM_CLASSES)}")
+    cls = PARAM_CLASSES[strategy]
+    table = dict(table or {})
+    known = {f.name for f in fields(cls)}
+    common = {f.name for f in fields(CommonParams)}
+    values: dict[str, Any] = {}
+    for key, v in table.items():
+        if key in PARAM_CLASSES:
+            if not isinstance(v, dict):
+                raise ParamError(f"strategy.{key}: expected a table")
+            continue
+        if key not in common:
+            raise ParamError(
+                f"strategy.{key}: unknown common parameter (strategy-specific keys go in "
+                f"[strategy.<name>]); common keys: {', '.join(sorted(common))}"
+            )
+        values[key] = v
+    sub = table.get(strategy, {})
+    for key, v in sub.items():
+        if key not in known:
+            raise ParamError(f"strategy.{strategy}.{key}: unknown parameter; allowed: {', '.join(sorted(known))}")
+        values[key] = v
+    p = cls()
+    for key, v in values.items():
+        f = next(f for f in fields(cls) if f.name == key)
+        lo, hi = f.metadata["range"]
+        where = strategy if key in sub else ""
+        values[key] = _check(where, key, v, lo, hi, isinstance(f.default, int) and not isinstance(f.default, bool))
+    return validate(replace(p, **values), strategy)
+
+
+def load_params(strategy: str, path: str | Path | None = None) -> CommonParams:
+    """Parameters of ``strategy`` from a strategy file's ``[strategy]`` table (None: defaults)."""
+    if path is None:
+        return params_from_table(strategy, None)
+    p = Path(path)
+    if not p.is_file():
+        raise ParamError(f"strategy file {p} does not exist")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ParamError(f"{p}: TOML syntax error: {e}") from None
+    unknown = set(data) - {"strategy"}
+    if unknown:
+        raise ParamError(f"{p}: unknown top-level keys {sorted(unknown)}; parameters go in [strategy]")
+    tbl = data.get("strategy", {})
+    if not isinstance(tbl, dict):
+        raise ParamError(f"{p}: [strategy] must be a table")
+    return params_from_table(strategy, tbl)

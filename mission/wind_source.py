@@ -1,0 +1,166 @@
+"""Where a strategy's wind information comes from: ``estimated``, ``oracle`` or ``none``.
+
+- ``estimated``: the paper's UKF wind estimator (``estimator.ukf.WindEstimator``) fed in
+  lockstep with the simulator's sensor samples (IMU, ESC rotor speeds, delayed GNSS velocity)
+  and an AHRS-like attitude (truth rotated by a seeded Gauss-Markov error, the model of
+  ``estimator.inprocess``). This is what a real vehicle has.
+- ``oracle``: the simulator's TRUE MEAN wind at the vehicle (``sim.wind.mean``), no
+  turbulence, no error. For comparison only: no real vehicle has it.
+- ``none``: no wind information at all (the strategies fall back to pure chemotaxis).
+
+Every source returns a :class:`~mission.strategies.base.WindInfo` per strategy tick (or None
+for ``none``). The upwind heading is the wind's from-direction through a causal Butterworth
+low-pass (``estimator.direction.DirectionFilter`` on the unit vector, so no 0/360 jump) at the
+strategy rate with the strategy's ``wind_filter_cutoff_hz`` -- the paper's heading command.
+:class:`UpwindFilter` is that filtering alone, for runners that receive the wind another way
+(a MAVSDK loop reading WIND_COV from the autopilot/companion).
+
+Conventions: NED, SI; wind = air-mass velocity NED ([-5, 0, 0] blows from the north, upwind is
+north); the upwind heading in rad equals the from-direction (0 = north, clockwise).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from estimator.direction import DirectionFilter, speed_direction
+from estimator.inprocess import AhrsErrorModel, model_params
+from estimator.ukf import EstimatorConfig, WindEstimator
+from mission.strategies.base import WindInfo
+from mission.strategies.params import CommonParams
+from sitl.frames import quat_mul
+from sitl.simulation import T_QUAT, Simulation
+
+WIND_MODES = ("estimated", "oracle", "none")
+
+
+class UpwindFilter:
+    """Wind vector (+ covariance) -> :class:`WindInfo` with the low-pass filtered upwind heading.
+
+    Call :meth:`make` once per strategy tick (the filter is designed for ``params.rate_hz``).
+    """
+
+    def __init__(self, params: CommonParams) -> None:
+        self.filter = DirectionFilter(params.wind_filter_cutoff_hz, params.rate_hz, int(params.wind_filter_order))
+        self.min_speed = params.min_wind_m_s
+
+    def make(self, wind_ned: np.ndarray, cov_ned: np.ndarray | None) -> WindInfo:
+        w = np.asarray(wind_ned, dtype=float)
+        C = np.zeros((3, 3)) if cov_ned is None else np.asarray(cov_ned, dtype=float)
+        speed, _, from_deg, from_sig_deg = speed_direction(w, C)
+        # Below the minimum speed the direction is noise: keep the filter where it was.
+        filtered = self.filter.update(from_deg) if speed >= self.min_speed else self.filter.value_deg
+        return WindInfo(
+            wind_ned=w.copy(), cov_ned=None if cov_ned is None else C,
+            upwind_rad=math.radians(filtered) if math.isfinite(filtered) else math.nan,
+            upwind_sigma_rad=math.radians(from_sig_deg),
+        )
+
+
+class WindSource(Protocol):
+    """Wind information for the in-process runner, updated once per strategy tick."""
+
+    mode: str
+
+    def update(self, drained: dict[str, list]) -> WindInfo | None:
+        """Consume the sensor samples drained from the simulation since the last tick."""
+        ...
+
+
+class NoWind:
+    """``none``: no wind information."""
+
+    mode = "none"
+
+    def __init__(self, sim: Simulation, params: CommonParams) -> None:
+        pass
+
+    def update(self, drained: dict[str, list]) -> WindInfo | None:
+        return None
+
+
+class OracleWind:
+    """``oracle``: the simulator's true mean wind at the vehicle (comparison only)."""
+
+    mode = "oracle"
+
+    def __init__(self, sim: Simulation, params: CommonParams) -> None:
+        self.sim = sim
+        self.upwind = UpwindFilter(params)
+
+    def update(self, drained: dict[str, list]) -> WindInfo | None:
+        sim = self.sim
+        return self.upwind.make(sim.wind.mean(sim.t, sim.position), None)
+
+
+class EstimatedWind:
+    """``estimated``: the UKF wind estimator fed from the simulation's sensor samples.
+
+    Needs a Simulation built with ``record_truth=True`` (only for the attitude measurement,
+    which the simulator does not publish yet; consumed rows are dropped to bound memory).
+    """
+
+    mode = "estimated"
+
+    def __init__(self, sim: Simulation, params: CommonParams, perturb_model: bool = False,
+                 config: EstimatorConfig | None = None, ahrs: AhrsErrorModel | None = None) -> None:
+        if sim.truth_log is None:
+            raise ValueError("EstimatedWind needs Simulation(record_truth=True) for the attitude measurement")
+        self.sim = sim
+        seed = sim.seed
+        self.estimator = WindEstimator(model_params(sim.vehicle, seed, perturb_model), config)
+        self.ahrs = ahrs or AhrsErrorModel()
+        self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xA4C5]))
+        self._att_err = self._rng.normal(0.0, math.radians(self.ahrs.sigma_deg), 3)
+        self._pending_gnss: list = []
+        self._latency = sim.scenario.sensors.gnss.latency_s
+        self._dt_imu = 1.0 / sim.scenario.sensors.imu.rate_hz
+        self.upwind = UpwindFilter(params)
+
+    def _attitude(self, q_true: np.ndarray) -> np.ndarray:
+        # First-order Gauss-Markov attitude error (an autopilot EKF's slowly wandering error).
+        a = math.exp(-self._dt_imu / self.ahrs.tau_s)
+        sig = math.radians(self.ahrs.sigma_deg)
+        self._att_err = a * self._att_err + math.sqrt(1.0 - a * a) * sig * self._rng.standard_normal(3)
+        e = self._att_err
+        dq = np.array([1.0, 0.5 * e[0], 0.5 * e[1], 0.5 * e[2]])
+        q = quat_mul(q_true, dq / np.linalg.norm(dq))
+        return q / np.linalg.norm(q)
+
+    def update(self, drained: dict[str, list]) -> WindInfo | None:
+        sim = self.sim
+        rows = sim.truth_log
+        truth = np.concatenate(rows) if rows else np.zeros((0, 28))
+        rows.clear()
+        imu = drained["imu"]
+        if len(imu) != truth.shape[0]:
+            raise RuntimeError("IMU samples and truth rows out of step (drain once per tick)")
+        esc = drained["esc"]
+        self._pending_gnss.extend(drained["gnss"])
+        est = self.estimator
+        ei = 0
+        for k, (t, acc, gyr) in enumerate(imu):
+            while ei < len(esc) and esc[ei][0] <= t + 1e-9:
+                est.set_rotor_speeds(esc[ei][0], esc[ei][1])
+                ei += 1
+            est.set_attitude(t, self._attitude(truth[k, T_QUAT]))
+            est.imu(t, acc, gyr)
+            # A fix is delivered `latency` after its time of validity, as a receiver does.
+            while self._pending_gnss and self._pending_gnss[0].t + self._latency <= t + 1e-9:
+                g = self._pending_gnss.pop(0)
+                est.gnss_velocity(g.t, g.vel_ned)
+        return self.upwind.make(est.wind_ned, est.wind_cov)
+
+
+def make_wind_source(mode: str, sim: Simulation, params: CommonParams) -> WindSource:
+    """The wind source for ``mode`` (``estimated``, ``oracle`` or ``none``)."""
+    if mode == "estimated":
+        return EstimatedWind(sim, params)
+    if mode == "oracle":
+        return OracleWind(sim, params)
+    if mode == "none":
+        return NoWind(sim, params)
+    raise ValueError(f"wind mode {mode!r}: choose one of {', '.join(WIND_MODES)}")
