@@ -76,6 +76,7 @@ class MavlinkWindAdapter:
         self._rotors = np.full(4, np.nan)
         self._rotor_seen = np.zeros(4, dtype=bool)
         self._esc_failed = np.zeros(4, dtype=bool)
+        self._rotor_t = -math.inf
         self._rates: np.ndarray | None = None
 
     def _claim(self, group: str, mtype: str) -> bool:
@@ -146,8 +147,11 @@ class MavlinkWindAdapter:
                 r = self.esc_to_rotor[k]
                 self._rotors[r] = float(rpm) * RPM_TO_RAD_S
                 self._rotor_seen[r] = True
-        if not self._rotor_seen.all() or self._esc_failed.any():
+        # Push a complete set once per time stamp: RAW_RPM arrives one rotor per message with
+        # no time of its own, so several messages share the latest time seen.
+        if not self._rotor_seen.all() or self._esc_failed.any() or t <= self._rotor_t:
             return False
+        self._rotor_t = t
         return self.est.set_rotor_speeds(t, self._rotors.copy())
 
     # ------------------------------------------------------------------ output

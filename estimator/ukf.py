@@ -332,11 +332,16 @@ class WindEstimator:
         return True
 
     def gnss_velocity(self, t_valid: float, vel_ned: np.ndarray) -> bool:
-        """NED ground velocity (m/s) valid at ``t_valid`` (s; may lie up to gnss_history_s in the past)."""
+        """NED ground velocity (m/s) valid at ``t_valid`` (s; may lie up to gnss_history_s in the past).
+
+        ``vel_ned`` has 3 components, or 2 (north, east) for receivers without a vertical
+        velocity (MAVLink GPS_RAW_INT): then only the horizontal components update.
+        """
         v = np.asarray(vel_ned, dtype=float)
         if not self._check_time("gnss", t_valid):
             return False
-        if not self._finite(v, 3) or np.linalg.norm(v) > VELOCITY_LIMIT_M_S:
+        nz = v.shape[0] if v.ndim == 1 else 0
+        if nz not in (2, 3) or not self._finite(v, nz) or np.linalg.norm(v) > VELOCITY_LIMIT_M_S:
             return self._reject("gnss:bad_value")
         if not self.ready or self.t is None:
             return self._reject("gnss:not_ready")
@@ -350,7 +355,7 @@ class WindEstimator:
                 return self._reject("gnss:stale")
             shift = self._R @ self.ukf.x[0:3] - past
         self._last_in["gnss"] = t_valid
-        self._update(v + shift, self._R_gnss, "gnss")
+        self._update(v + shift[:nz], self._R_gnss[:nz, :nz], "gnss")
         self.accepted["gnss"] += 1
         return True
 
@@ -383,7 +388,7 @@ class WindEstimator:
             h = _accel_batch(ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p)
         else:
             Rm = self._R
-            h = ukf.sigmas_f[:, 0:3] @ Rm.T
+            h = (ukf.sigmas_f[:, 0:3] @ Rm.T)[:, : len(z)]
         it = iter(h)
 
         def run() -> None:

@@ -1,0 +1,260 @@
+"""Wind estimator: convergence, step tracking, coverage, input rejection, gaps, MAVLink decoding.
+
+Short scenarios keep the whole file to a few tens of seconds on two cores.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from estimator.direction import DirectionFilter, angle_diff_deg, from_direction_deg, speed_direction
+from estimator.inprocess import InProcessRunner
+from estimator.mavlink_adapter import MavlinkWindAdapter
+from estimator.metrics import accuracy, moving_average, reconvergence_time
+from estimator.rpm_free import MotorCommandModel
+from estimator.ukf import WindEstimator
+from sitl.frames import euler_to_quat
+from sitl.link.dialect import mavlink
+from sitl.rotor_model import hover_rotor_speed
+from sitl.scenario import load_scenario
+from sitl.vehicle import load_vehicle
+from sitl.wind import SteadyWind, WindChange
+
+
+def _steady(wind, duration, changes=()):
+    sc = load_scenario("paper-s1")
+    return replace(
+        sc, duration_s=duration, turbulence=None, wind=SteadyWind(velocity_ned=wind, changes=tuple(changes))
+    )
+
+
+# ------------------------------------------------------------------ filter behaviour in the loop
+def test_cold_start_converges_on_constant_wind():
+    log = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2).run()
+    assert np.allclose(log.wind_est[0], 0.0, atol=1.5), "starts from no prior (zero wind)"
+    assert log.wind_sigma[0].min() > 3.0, "with a large covariance"
+    late = log.t > 4.0
+    err = log.wind_est[late] - log.wind_true[late]
+    assert np.sqrt(np.mean(err[:, 0] ** 2 + err[:, 1] ** 2)) < 0.3
+    assert np.all(log.wind_sigma[late, :2] < 0.5)
+    d = from_direction_deg(log.wind_est[late, 0], log.wind_est[late, 1])
+    assert np.sqrt(np.mean(angle_diff_deg(d, from_direction_deg(-6.0, 3.0)) ** 2)) < 3.0
+
+
+def test_tracks_a_wind_step():
+    sc = _steady((-8.0, 0.0, 0.0), 11.0, [WindChange(5.0, (-4.0, -6.0, 0.0))])
+    log = InProcessRunner(sc, seed=3).run()
+    a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=3.0, step_times=(5.0,))
+    assert a.reconverge_s is not None and a.reconverge_s < 3.0
+    end = log.t > 9.0
+    assert np.allclose(log.wind_est[end, :2].mean(axis=0), [-4.0, -6.0], atol=0.3)
+
+
+def test_two_sigma_coverage_over_seeds():
+    """Horizontal 2-sigma coverage in turbulence (paper-s1, first 14 s) over several seeds."""
+    cov = []
+    for seed in (11, 12, 13):
+        log = InProcessRunner(load_scenario("paper-s1").with_duration(14.0), seed=seed).run()
+        a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=4.0)
+        cov.append(a.coverage_2sigma_axis[:2])
+    c = float(np.mean(cov))
+    assert 0.88 <= c <= 0.995, c
+
+
+def test_deterministic():
+    sc = load_scenario("paper-s1").with_duration(1.5)
+    a = InProcessRunner(sc, seed=5).run()
+    b = InProcessRunner(sc, seed=5).run()
+    assert np.array_equal(a.wind_est, b.wind_est)
+
+
+# ------------------------------------------------------------------ bad input and gaps
+def _primed() -> tuple[WindEstimator, float]:
+    est = WindEstimator(load_vehicle())
+    q = euler_to_quat(0.0, 0.0, 0.0)
+    w = np.full(4, hover_rotor_speed(load_vehicle()))
+    est.set_rotor_speeds(0.0, w)
+    t = 0.0
+    for k in range(50):
+        t = 0.004 * (k + 1)
+        est.set_attitude(t, q)
+        est.imu(t, np.array([0.0, 0.0, -9.80665]), np.zeros(3))
+        if k % 25 == 24:
+            est.gnss_velocity(t - 0.05, np.zeros(3))
+    return est, t
+
+
+def test_rejects_bad_input_without_touching_state():
+    est, t = _primed()
+    x, P = est.state, est.covariance
+    bad = [
+        lambda: est.imu(t + 0.004, np.array([np.nan, 0.0, -9.8]), np.zeros(3)),
+        lambda: est.imu(t + 0.004, np.array([0.0, 0.0, -1e4]), np.zeros(3)),
+        lambda: est.imu(t + 0.004, np.array([0.0, 0.0, -9.8]), np.array([0.0, 100.0, 0.0])),
+        lambda: est.imu(t, np.array([0.0, 0.0, -9.8]), np.zeros(3)),  # duplicate time
+        lambda: est.imu(t - 0.1, np.array([0.0, 0.0, -9.8]), np.zeros(3)),  # out of order
+        lambda: est.imu(math.inf, np.array([0.0, 0.0, -9.8]), np.zeros(3)),
+        lambda: est.gnss_velocity(t - 0.02, np.array([np.nan, 0.0, 0.0])),
+        lambda: est.gnss_velocity(t - 0.02, np.array([1e3, 0.0, 0.0])),
+        lambda: est.gnss_velocity(t - 10.0, np.zeros(3)),  # older than the history
+        lambda: est.set_rotor_speeds(t, np.array([400.0, -5.0, 400.0, 400.0])),
+        lambda: est.set_rotor_speeds(t + 0.001, np.array([400.0, 1e6, 400.0, 400.0])),
+        lambda: est.set_attitude(t + 0.001, np.array([2.0, 0.0, 0.0, 0.0])),
+        lambda: est.set_attitude(t + 0.002, np.array([np.nan, 0.0, 0.0, 1.0])),
+    ]
+    for f in bad:
+        assert f() is False
+    assert np.array_equal(est.state, x) and np.array_equal(est.covariance, P)
+    assert sum(est.rejected.values()) == len(bad)
+    assert est.rejected["imu:bad_value"] == 3 and est.rejected["imu:duplicate_or_out_of_order"] == 2
+    # Good input still goes through afterwards.
+    assert est.imu(t + 0.004, np.array([0.0, 0.0, -9.80665]), np.zeros(3))
+
+
+def test_gap_predicts_only_and_covariance_grows():
+    est, t = _primed()
+    p_before = np.trace(est.wind_cov)
+    est.predict_to(t + 2.0)
+    p_after = np.trace(est.wind_cov)
+    assert p_after > p_before + 1.0
+    assert est.t == pytest.approx(t + 2.0)
+    assert est.imu(t + 2.004, np.array([0.0, 0.0, -9.80665]), np.zeros(3))
+
+
+def test_not_ready_without_attitude_or_rotors():
+    est = WindEstimator(load_vehicle())
+    assert est.imu(0.004, np.array([0.0, 0.0, -9.8]), np.zeros(3)) is False
+    assert est.rejected["imu:not_ready"] == 1
+
+
+# ------------------------------------------------------------------ direction, metrics, rpm-free
+def test_direction_convention_and_uncertainty():
+    assert from_direction_deg(-10.0, 0.0) == pytest.approx(0.0)  # from north
+    assert from_direction_deg(0.0, -10.0) == pytest.approx(90.0)  # from east
+    assert from_direction_deg(-7.07, -7.07) == pytest.approx(45.0)
+    s, s_sig, d, d_sig = speed_direction(np.array([0.0, -10.0, 0.0]), np.diag([0.04, 0.01, 1.0]))
+    assert s == pytest.approx(10.0) and s_sig == pytest.approx(0.1)
+    assert d == pytest.approx(90.0) and d_sig == pytest.approx(math.degrees(0.2 / 10.0))
+
+
+def test_butterworth_matches_scipy_and_does_not_jump_at_wrap():
+    f = DirectionFilter(1.0, 50.0, order=2)
+    x = np.linspace(350.0, 370.0, 200) % 360.0
+    y = np.array([f.update(v) for v in x])
+    assert np.all(np.abs(angle_diff_deg(y[1:], y[:-1])) < 1.0)
+    # Same as scipy.signal.sosfilt on the unit-vector components from steady state.
+    c = np.cos(np.radians(x))
+    s = np.sin(np.radians(x))
+    zi = signal.sosfilt_zi(f.sos)
+    yc, _ = signal.sosfilt(f.sos, c, zi=zi * c[0])
+    ys, _ = signal.sosfilt(f.sos, s, zi=zi * s[0])
+    assert np.allclose(y, np.degrees(np.arctan2(ys, yc)) % 360.0, atol=1e-9)
+
+
+def test_metrics_reconvergence_and_average():
+    t = np.arange(0.0, 10.0, 0.01)
+    err = np.where((t >= 5.0) & (t < 6.5), 3.0, 0.2)
+    assert reconvergence_time(t, err, 5.0) == pytest.approx(1.5, abs=0.011)
+    x = np.sin(t)[:, None]
+    assert np.allclose(moving_average(t, x, 1.0, centered=True)[300:700], x[300:700] * math.sin(0.5) / 0.5, atol=2e-3)
+
+
+def test_motor_command_model_is_first_order_lag():
+    m = MotorCommandModel(0.04, 1000.0)
+    m.update(0.0, np.full(4, 300.0))
+    m.update(0.004, np.full(4, 400.0))
+    w = m.update(0.044, np.full(4, 400.0))
+    assert np.allclose(w, 400.0 - 100.0 * math.exp(-1.0))
+    assert m.update(0.044, np.full(4, 400.0)) is None  # duplicate time
+
+
+# ------------------------------------------------------------------ MAVLink adapter
+def _roundtrip(msgs):
+    """Encode with pymavlink (windseek dialect) to bytes and decode with a fresh parser."""
+    tx = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    rx = mavlink.MAVLink(None)
+    out = []
+    for m in msgs:
+        for b in m.pack(tx):
+            d = rx.parse_char(bytes([b]))
+            if d is not None:
+                out.append(d)
+    assert len(out) == len(msgs)
+    return out
+
+
+@pytest.mark.parametrize("imu_kind", ["HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU"])
+@pytest.mark.parametrize("att_kind", ["ATTITUDE_QUATERNION", "ATTITUDE"])
+@pytest.mark.parametrize("vel_kind", ["LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"])
+@pytest.mark.parametrize("rpm_kind", ["ESC_STATUS", "RAW_RPM"])
+def test_mavlink_adapter_decodes_every_kind(imu_kind, att_kind, vel_kind, rpm_kind):
+    est = WindEstimator(load_vehicle())
+    ad = MavlinkWindAdapter(est)
+    omega = np.array([390.0, 395.0, 391.0, 396.0])
+    rpm = omega * 60.0 / (2.0 * math.pi)
+    roll, pitch, yaw = 0.02, -0.1, 0.3
+    q = euler_to_quat(roll, pitch, yaw)
+    msgs = [mavlink.MAVLink_esc_info_message(0, 1000, 1, 4, 5, 15, [0, 0, 0, 0], [0] * 4, [2500] * 4)]
+    for k in range(1, 31):
+        t_us = 1_000_000 + 4000 * k
+        t_ms = t_us // 1000
+        if rpm_kind == "ESC_STATUS":
+            rpm_i = [int(round(r)) for r in rpm]
+            msgs.append(mavlink.MAVLink_esc_status_message(0, t_us, rpm_i, [16.0] * 4, [5.0] * 4))
+        else:
+            msgs += [mavlink.MAVLink_raw_rpm_message(i, float(rpm[i])) for i in range(4)]
+        if att_kind == "ATTITUDE_QUATERNION":
+            msgs.append(mavlink.MAVLink_attitude_quaternion_message(t_ms, *q, 0.01, 0.02, 0.03, [1.0, 0, 0, 0]))
+        else:
+            msgs.append(mavlink.MAVLink_attitude_message(t_ms, roll, pitch, yaw, 0.01, 0.02, 0.03))
+        acc = [1.0, 0.2, -9.9]
+        gyr = [0.01, 0.02, 0.03]
+        if imu_kind == "HIL_SENSOR":
+            msgs.append(mavlink.MAVLink_hil_sensor_message(t_us, *acc, *gyr, 0, 0, 0, 1000, 0, 0, 20, 0x3F, 0))
+        elif imu_kind == "HIGHRES_IMU":
+            msgs.append(mavlink.MAVLink_highres_imu_message(t_us, *acc, *gyr, 0, 0, 0, 1000, 0, 0, 20, 0x3F, 0))
+        else:
+            mg = [int(round(a / 9.80665 * 1000)) for a in acc]
+            msgs.append(mavlink.MAVLink_scaled_imu_message(t_ms, *mg, 10, 20, 30, 0, 0, 0, 2000))
+        if k % 10 == 0:
+            if vel_kind == "LOCAL_POSITION_NED":
+                msgs.append(mavlink.MAVLink_local_position_ned_message(t_ms, 0, 0, -10, 1.5, -0.5, 0.2))
+            elif vel_kind == "GLOBAL_POSITION_INT":
+                msgs.append(mavlink.MAVLink_global_position_int_message(t_ms, 473977420, 85455940, 498000, 10000,
+                                                                        150, -50, 20, 0))  # fmt: skip
+            else:
+                msgs.append(mavlink.MAVLink_gps_raw_int_message(t_us, 3, 473977420, 85455940, 498000, 100, 100,
+                                                                158, 34157, 14))  # fmt: skip
+    for m in _roundtrip(msgs):
+        ad.handle(m)
+    assert not est.rejected, dict(est.rejected)
+    assert est.accepted["imu"] == 30
+    assert est.accepted["gnss"] == 3
+    assert np.allclose(est._w_rot, omega, atol=0.1)
+    assert np.allclose(est._q_att, q, atol=1e-6)
+    assert np.allclose(est._rates, [0.01, 0.02, 0.03], atol=1e-6)
+    # The velocity fix moved the body velocity towards [1.5, -0.5] m/s NED.
+    v_ned = est._R @ est.state[0:3]
+    assert np.allclose(v_ned[:2], [1.5, -0.5], atol=0.25)
+    # WIND_COV back out, decodable, air-mass velocity NED.
+    (wc,) = _roundtrip([ad.wind_cov(10.0)])
+    assert wc.get_type() == "WIND_COV"
+    assert np.allclose([wc.wind_x, wc.wind_y, wc.wind_z], est.wind_ned, atol=1e-5)
+    assert wc.var_horiz == pytest.approx(float(est.wind_cov[0, 0] + est.wind_cov[1, 1]), rel=1e-5)
+
+
+def test_mavlink_failed_esc_blocks_rotor_speeds():
+    est = WindEstimator(load_vehicle())
+    ad = MavlinkWindAdapter(est)
+    msgs = [
+        mavlink.MAVLink_esc_info_message(0, 1000, 1, 4, 5, 15, [0, 32, 0, 0], [0] * 4, [2500] * 4),
+        mavlink.MAVLink_esc_status_message(0, 2000, [3700] * 4, [16.0] * 4, [5.0] * 4),
+    ]
+    for m in _roundtrip(msgs):
+        ad.handle(m)
+    assert est._w_rot is None
