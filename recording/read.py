@@ -47,6 +47,12 @@ class RrdLog:
         """Every entity path with data (static or temporal), sorted, without the leading '/'."""
         return sorted(p for p in self._chunks if p)
 
+    def temporal_entity_paths(self, timeline: str = TIMELINE) -> list[str]:
+        """Entity paths with data on ``timeline`` (leaves out style-only and static entities)."""
+        return sorted(
+            p for p, chunks in self._chunks.items() if p and any(timeline in c.timeline_names for c in chunks)
+        )
+
     def timelines(self) -> set[str]:
         """Names of all timelines used by any chunk."""
         return {name for chunks in self._chunks.values() for c in chunks for name in c.timeline_names}
@@ -67,6 +73,24 @@ class RrdLog:
                 paths.update(_norm(c.entity_path) for c in self._reader.stream(store=store).to_chunks())
             self._blueprint_paths = sorted(paths)
         return self._blueprint_paths
+
+    def blueprint_views(self) -> list[tuple[str, str, str]]:
+        """Views of the blueprint(s): (class, origin, name), e.g. ("Spatial3D", "world", "world (NED)")."""
+        views: list[tuple[str, str, str]] = []
+        for store in self._reader.blueprints():
+            for c in self._reader.stream(store=store).to_chunks():
+                rb = c.to_record_batch()
+                if "ViewBlueprint:class_identifier" not in rb.schema.names:
+                    continue
+                d = rb.to_pydict()
+                for cls, origin, name in zip(
+                    d["ViewBlueprint:class_identifier"],
+                    d.get("ViewBlueprint:space_origin", [None] * rb.num_rows),
+                    d.get("ViewBlueprint:display_name", [None] * rb.num_rows),
+                    strict=True,
+                ):
+                    views.append((cls[0] if cls else "", origin[0] if origin else "", name[0] if name else ""))
+        return views
 
     # ------------------------------------------------------------------ values
     def column(self, entity: str, component: str, timeline: str = TIMELINE) -> tuple[np.ndarray, list[Any]]:

@@ -264,6 +264,8 @@ class RunRecorder:
 
     def _push_row(self, entity: str, archetype: type, t: float, **fields: object) -> None:
         """Buffer one temporal row of ``archetype`` (one instance per row) for :meth:`flush_series`."""
+        if t > self._t_last:
+            self._t_last = t
         buf = self._series.get(entity)
         if buf is None:
             buf = self._series[entity] = _ColumnBuffer(archetype)
@@ -301,9 +303,9 @@ class RunRecorder:
         ``trail_every_s``).
         """
         t = float(t)
-        p = np.asarray(pos_ned, dtype=float)
-        q = quat_wxyz
-        self._t_last = max(self._t_last, t)
+        # Copies: callers pass views of live state (sim.x[0:3]) and rows are sent later.
+        p = np.array(pos_ned, dtype=float)
+        q = np.array(quat_wxyz, dtype=float)
         self._push_row("world/vehicle", rr.Transform3D, t, translation=p, quaternion=(q[1], q[2], q[3], q[0]))
         if not self._trail or np.linalg.norm(p - self._trail[-1]) >= self.trail_min_step_m:
             self._trail.append(p.copy())
@@ -395,8 +397,7 @@ class RunRecorder:
         """Wind at the vehicle as arrows from ``pos_ned`` [m]: true and estimated air-mass
         velocity [m/s, NED], i.e. pointing where the air goes, ``arrow_scale_s`` m per m/s."""
         t = float(t)
-        self._t_last = max(self._t_last, t)
-        origin = np.asarray(pos_ned, dtype=float)
+        origin = np.array(pos_ned, dtype=float)  # a copy: buffered, and callers pass live views
         for entity, w in (("world/wind/truth", wind_true_ned), ("world/wind/estimate", wind_est_ned)):
             if w is not None:
                 vec = np.asarray(w, dtype=float) * self.arrow_scale_s
