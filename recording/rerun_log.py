@@ -311,8 +311,11 @@ class RunRecorder:
             self._trail.append(p.copy())
             self._trail_dirty = True
             if len(self._trail) > self.trail_max_points:
-                # Thin by 2 (keeping the newest point) so the strip stays cheap to re-send.
-                self._trail = self._trail[-1::-2][::-1]
+                # Thin by 2, keeping the start and the newest point, so the strip stays cheap to re-send.
+                thinned = self._trail[::2]
+                if len(self._trail) % 2 == 0:
+                    thinned.append(self._trail[-1])
+                self._trail = thinned
         if self._trail_dirty and t - self._t_trail >= self.trail_every_s:
             self._time(t)
             self._send_trail()

@@ -228,3 +228,17 @@ def test_wind_from_direction_and_colormap() -> None:
     np.testing.assert_array_equal(rgb[1], [68, 1, 84])
     np.testing.assert_array_equal(rgb[3], [33, 145, 140])
     np.testing.assert_array_equal(rgb[5], [253, 231, 37])
+
+
+def test_trail_is_thinned_but_keeps_start_and_end(tmp_path: Path) -> None:
+    path = tmp_path / "trail.rrd"
+    with RunRecorder(path, trail_max_points=10, trail_every_s=0.0) as rec:
+        for k in range(50):
+            rec.vehicle(0.1 * k, [float(k), 0.0, -5.0], [1.0, 0.0, 0.0, 0.0])
+    t, strips = RrdLog(path).column("world/trail", "LineStrips3D:strips")
+    last = np.array(strips[-1][0])
+    assert len(last) <= 11
+    np.testing.assert_allclose(last[0], [0.0, 0.0, -5.0])
+    np.testing.assert_allclose(last[-1], [49.0, 0.0, -5.0])
+    assert (np.diff(last[:, 0]) > 0).all()  # still in flight order
+    assert t[-1] == pytest.approx(4.9)
