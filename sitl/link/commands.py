@@ -55,6 +55,7 @@ class CommandHandler:
 
     def __init__(self, sitl: SitlLink) -> None:
         self.sitl = sitl
+        self._after_ack: list = []
         ep = sitl.endpoint
         ep.handlers["COMMAND_LONG"] = self.on_command_long
         ep.handlers["COMMAND_INT"] = self.on_command_int
@@ -89,6 +90,10 @@ class CommandHandler:
         self.sitl.endpoint.send(
             mav.MAVLink_command_ack_message(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()), link
         )
+        # Requested messages follow their COMMAND_ACK, as on PX4.
+        after, self._after_ack = self._after_ack, []
+        if result == ACCEPTED:
+            self.sitl.endpoint.send_many(after, link)
         if result != ACCEPTED:
             self.sitl.endpoint.counters["commands_refused"] += 1
 
@@ -140,7 +145,7 @@ class CommandHandler:
             us = sitl.streams.interval_us(int(p[0]))
             if us is None:
                 return DENIED
-            sitl.endpoint.send(mav.MAVLink_message_interval_message(int(p[0]), us), link)
+            self._after_ack.append(mav.MAVLink_message_interval_message(int(p[0]), us))
             return ACCEPTED
         if cmd == mav.MAV_CMD_REQUEST_MESSAGE:
             if not math.isfinite(p[0]):
@@ -194,18 +199,16 @@ class CommandHandler:
     def send_requested(self, msg_id: int, link: Link, p: list[float]) -> bool:
         """Send one requested message on ``link``; False if it is not something we have."""
         sitl = self.sitl
-        ep = sitl.endpoint
         if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            ep.send(
+            self._after_ack.append(
                 mav.MAVLink_autopilot_version_message(
                     CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, b"\0" * 8, b"\0" * 8, b"\0" * 8, 0x26AC, 0x11,
                     0x5749_4E44_5345_454B, [0] * 18,
-                ),
-                link,
+                )
             )  # fmt: skip
             return True
         msgs = sitl.streams.build_once(msg_id)
         if not msgs:
             return False
-        ep.send_many(msgs, link)
+        self._after_ack.extend(msgs)
         return True

@@ -113,9 +113,23 @@ class Endpoint:
         for fd in ready:
             lk = self._fd_link[fd]
             data = lk.transport.read(fd)
-            if data:
+            if isinstance(data, list):  # datagrams
+                for dgram in data:
+                    handled += self.feed(lk, dgram)
+                    self._end_of_datagram(lk)
+            elif data:
                 handled += self.feed(lk, data)
         return handled
+
+    def _end_of_datagram(self, lk: Link) -> None:
+        p = lk.parser
+        if p.buf_len() > 0:
+            self.counters["rx_bad"] += 1
+            self.counters["rx_truncated"] += 1
+        p.buf = bytearray()
+        p.buf_index = 0
+        p.expected_length = mavlink.HEADER_LEN_V1 + 2
+        p.have_prefix_error = False
 
     def feed(self, lk: Link, data: bytes) -> int:
         """Parse bytes that arrived on a link and dispatch the messages."""
@@ -125,8 +139,7 @@ class Endpoint:
         except Exception:  # the parser must never take the endpoint down
             log.debug("parser error on %s", lk.name, exc_info=True)
             self.counters["rx_bad"] += 1
-            lk.parser.buf = bytearray()
-            lk.parser.buf_index = 0
+            self._end_of_datagram(lk)
             return 0
         handled = 0
         for msg in msgs:

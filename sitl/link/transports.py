@@ -87,7 +87,9 @@ class UdpTransport(Transport):
     def fds(self) -> list[int]:
         return [self.sock.fileno()]
 
-    def read(self, fd: int) -> bytes:
+    def read(self, fd: int) -> list[bytes]:  # type: ignore[override]
+        # One entry per datagram: a MAVLink frame never spans datagrams, so the endpoint parses
+        # each on its own and a truncated frame cannot swallow the next sender's frame.
         chunks = []
         while True:
             try:
@@ -100,9 +102,8 @@ class UdpTransport(Transport):
             if addr not in self.peers:
                 self.peers.append(addr)
             chunks.append(data)
-        out = b"".join(chunks)
-        self.stats.rx_bytes += len(out)
-        return out
+            self.stats.rx_bytes += len(data)
+        return chunks
 
     def write(self, data: bytes) -> None:
         for peer in self.peers:
