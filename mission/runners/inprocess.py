@@ -64,6 +64,8 @@ class TrialResult:
     cause: str
     end_state: str = ""
     n_detections: int = 0
+    hit_rate_at_last: float = math.nan
+    diag: dict = field(default_factory=dict)
     wall_s: float = 0.0
     track: list[list[float]] = field(default_factory=list)  # [t, n, e, d] per second when asked
 
@@ -204,5 +206,6 @@ def run_trial(
         declared_ned=None if declared is None else [round(float(v), 3) for v in declared],
         confidence=round(float(sp.confidence), 3), error_m=err, time_s=t_declared, path_m=path,
         start_distance_m=start_dist, cause=cause, end_state=sp.state,
-        n_detections=strat.memory.n_detect, wall_s=_time.perf_counter() - wall0, track=track,
+        n_detections=strat.memory.n_detect, hit_rate_at_last=round(strat.memory.hit_rate_at_last, 3),
+        diag=getattr(strat, "diag", {}), wall_s=_time.perf_counter() - wall0, track=track,
     )

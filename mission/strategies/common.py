@@ -27,6 +27,10 @@ from mission.strategies.params import CommonParams
 
 #: Two losses whose candidates lie within this distance count as the same plume end [m].
 REPEAT_TOL_M = 3.0
+#: Largest distance of the position setpoint from the observed position [m].
+CARROT_MAX_M = 2.0
+#: Time constant of the detection-rate average [s].
+HIT_TAU_S = 3.0
 
 
 def crosswind(u: np.ndarray) -> np.ndarray:
@@ -47,21 +51,50 @@ class PlumeMemory:
         self.last_detect_t = -math.inf
         self.first_detect_t = math.nan
         self.n_detect = 0
+        # Detection rate (fraction of readings at or above the limit), exponentially averaged
+        # over HIT_TAU_S, and its value at the last detection: near a source the plume is
+        # continuous (rate ~1), far downwind it is intermittent (~0.2-0.3), so a loss after a
+        # high rate is a plume end, a loss after a low rate is likely a gap or a meander.
+        self.hit_rate = 0.0
+        self.hit_rate_at_last = 0.0
+        self._t_sample = math.nan
+        self._prev_value = 0.0
+        self.all_values: list[float] = []
 
     def add(self, obs: Observation) -> bool:
-        """Record the observation's reading if it is new; returns True on a new detection."""
+        """Record the observation's reading if it is new; returns True on a new hit.
+
+        A hit is a detection that is not just the sensor's decay: after a strong puff the
+        first-order sensor (``sensor_tau_s``) reads above the detection limit for seconds
+        (ln(c / limit) tau: 4 s from 240 mg/m^3), i.e. many metres after the vehicle left the
+        plume. A reading counts as a hit only if it exceeds the pure decay of the previous
+        one by more than 3 noise sigmas; only hits place the plume.
+        """
         if not obs.chem_new:
             return False
+        value = obs.chem_mg_m3 if obs.detected else 0.0
+        prev, t_prev = self._prev_value, self._t_sample
+        self._prev_value = value
+        decayed = 0.0 if math.isnan(t_prev) else prev * math.exp(-(obs.t - t_prev) / self.p.sensor_tau_s)
+        hit = obs.detected and value > decayed + 3.0 * self.p.sensor_noise_mg_m3
         pos = obs.position_ned[0:2] - self.p.sensor_lag_s * obs.velocity_ned[0:2]
-        self.samples.append((obs.t, pos, obs.chem_mg_m3 if obs.detected else 0.0))
+        dt = 0.1 if math.isnan(self._t_sample) else max(obs.t - self._t_sample, 0.0)
+        self._t_sample = obs.t
+        a = -math.expm1(-dt / HIT_TAU_S)
+        self.hit_rate += a * ((1.0 if hit else 0.0) - self.hit_rate)
+        self.samples.append((obs.t, pos, value))
         while self.samples and self.samples[0][0] < obs.t - self.p.memory_s:
             self.samples.popleft()
-        if not obs.detected:
+        if obs.detected:
+            # Any detection (decay tail included) keeps the plume "found" for timing.
+            self.last_detect_t = obs.t
+            self.all_values.append(value)
+        if not hit:
             return False
         self.det_t.append(obs.t)
         self.det_pos.append(pos)
         self.det_val.append(obs.chem_mg_m3)
-        self.last_detect_t = obs.t
+        self.hit_rate_at_last = self.hit_rate
         if self.n_detect == 0:
             self.first_detect_t = obs.t
         self.n_detect += 1
@@ -72,11 +105,24 @@ class PlumeMemory:
         return t - self.last_detect_t
 
     def most_upwind(self, u: np.ndarray) -> np.ndarray | None:
-        """Lag-corrected position (north, east) of the detection furthest along ``u``."""
+        """Lag-corrected position (north, east) of the hit furthest along ``u`` among the hits of
+        at least ``candidate_min_mg_m3`` (a single weak hit is as likely noise or a stray puff)."""
         if not self.det_pos:
             return None
         P = np.asarray(self.det_pos)
+        strong = np.asarray(self.det_val) >= self.p.candidate_min_mg_m3
+        if not strong.any():
+            return None
+        P = P[strong]
         return P[int(np.argmax(P @ u))].copy()
+
+    def peak_near(self, point: np.ndarray, radius_m: float) -> float:
+        """Largest hit value within ``radius_m`` of ``point`` (horizontal), mg/m^3."""
+        if not self.det_pos:
+            return 0.0
+        d = np.linalg.norm(np.asarray(self.det_pos) - point, axis=1)
+        v = np.asarray(self.det_val)[d <= radius_m]
+        return float(v.max()) if len(v) else 0.0
 
     def n_near(self, point: np.ndarray, radius_m: float) -> int:
         """Detections within ``radius_m`` of ``point`` (horizontal)."""
@@ -151,28 +197,55 @@ class UpwindAxis:
 
 
 class Sweep:
-    """Crosswind sweeps of growing half-width about a centre line, drifting downwind: the
-    moth's cast and the zig-zag's lost search. Positions are crosswind coordinates (m along n)."""
+    """Crosswind sweeps of growing half-width about the plume centreline, anchored at the last
+    detection: the moth's cast and the zig-zag's lost search.
 
-    def __init__(self, center: float, half_width: float, growth: float, max_half_width: float,
-                 direction: float) -> None:
+    The along-wind anchor starts ``back_m`` downwind of the last detection (the vehicle has
+    usually run past it: surge persistence and sensor lag) and then drifts downwind at
+    ``drift`` m/s -- the plume is downwind of its source, so backing off widens the
+    cross-section swept. Returning to the last hit is what turns "lost at the source" into a
+    re-detection and a second loss at the same place (the confirmation rule). Coordinates:
+    crosswind ``c`` (m along n) and along-wind ``a`` (m along u).
+    """
+
+    def __init__(self, t0: float, center: float, anchor: float, half_width: float, growth: float,
+                 max_half_width: float, direction: float, drift: float) -> None:
+        self.t0 = t0
         self.center = center
+        self.anchor = anchor
         self.half = half_width
         self.growth = growth
         self.max_half = max_half_width
         self.dir = 1.0 if direction >= 0 else -1.0
+        self.drift = drift
         self.n_legs = 0
 
-    def velocity(self, c_now: float, u: np.ndarray, n: np.ndarray, speed: float, drift: float) -> np.ndarray:
+    def velocity(self, t: float, pos: np.ndarray, u: np.ndarray, n: np.ndarray, speed: float) -> np.ndarray:
         """Horizontal velocity (north, east), m/s; flips at each end and grows the width."""
+        c_now = float(pos @ n)
+        a_now = float(pos @ u)
         target = self.center + self.dir * self.half
         if (target - c_now) * self.dir <= 0.0:
             self.dir = -self.dir
             self.n_legs += 1
             if self.n_legs % 2 == 0:  # a full sweep (both sides) without finding anything
                 self.half = min(self.half * self.growth, self.max_half)
-        v_cross = math.sqrt(max(speed * speed - drift * drift, 0.0))
-        return self.dir * v_cross * n - drift * u
+        a_target = self.anchor - self.drift * (t - self.t0)
+        v_along = float(np.clip(0.8 * (a_target - a_now), -0.8 * speed, 0.8 * speed))
+        v_cross = math.sqrt(max(speed * speed - v_along * v_along, 0.0))
+        return self.dir * v_cross * n + v_along * u
+
+    @classmethod
+    def start(cls, t: float, pos: np.ndarray, u: np.ndarray, n: np.ndarray, memory: PlumeMemory,
+              half_width: float, growth: float, max_half_width: float, drift: float, back_m: float) -> Sweep:
+        """A sweep from the current situation: centred on the centreline (or here), anchored
+        ``back_m`` downwind of the last detection (or here), first toward the centreline."""
+        c_now = float(pos @ n)
+        center = memory.centerline(t, n)
+        center = c_now if center is None else center
+        anchor = float(pos @ u) if not memory.det_pos else float(memory.det_pos[-1] @ u) - back_m
+        direction = 1.0 if center >= c_now else -1.0
+        return cls(t, center, anchor, half_width, growth, max_half_width, direction, drift)
 
 
 class BaseStrategy:
@@ -199,6 +272,7 @@ class BaseStrategy:
         self.overshoot_reached = False
         self.loss_candidates: list[float] = []  # upwind coordinate of each loss's candidate
         self._loss_counted = False
+        self.carrot: np.ndarray | None = None
         self._reset()
 
     def _reset(self) -> None:
@@ -209,11 +283,6 @@ class BaseStrategy:
         raise NotImplementedError
 
     # ------------------------------------------------------------------ helpers
-    def _vz(self, obs: Observation, altitude_m: float) -> float:
-        """Vertical velocity (m/s, NED) holding ``altitude_m`` above the start point."""
-        z_target = self.start[2] - altitude_m  # start_ned is the point on the ground (home)
-        return float(np.clip(1.0 * (z_target - obs.position_ned[2]), -1.0, 1.0))
-
     def _check_declare(self, t: float, pos_ne: np.ndarray, u: np.ndarray) -> bool:
         """The plume-ended rule (module docstring); sets the declaration when it fires."""
         m = self.memory
@@ -234,8 +303,9 @@ class BaseStrategy:
         c_up = float(cand @ u)
         if not self._loss_counted:
             self._loss_counted = True
-            repeat = any(abs(c_up - c) <= REPEAT_TOL_M for c in self.loss_candidates)
+            n_same = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.loss_candidates)
             self.loss_candidates.append(c_up)
+            repeat = n_same + 1 >= p.confirmations
             if repeat:
                 return self._declare(t, cand, repeat=True)
         if lost >= p.declare_after_s:
@@ -250,6 +320,8 @@ class BaseStrategy:
         # Confidence: support of the candidate by nearby detections, and whether the plume end
         # was confirmed by a second loss at the same place.
         self.confidence = float((1.0 - math.exp(-n / 10.0)) * (1.0 if repeat else 0.8))
+        self.diag = {"peak_near": self.memory.peak_near(cand, 5.0),
+                     "median_all": float(np.median(self.memory.all_values)), "repeat": float(repeat)}
         return True
 
     # ------------------------------------------------------------------ tick
@@ -268,25 +340,42 @@ class BaseStrategy:
         if self.declared is not None:
             return self._descend(obs, u)
         v_ne, state = self._search(obs, u, n, new_det, dt)
-        vel = np.array([v_ne[0], v_ne[1], self._vz(obs, p.altitude_m)])
-        return Setpoint(velocity_ned=vel, yaw_rad=heading_of(u), state=state,
+        pos_sp = self._carrot(obs, v_ne, dt, p.altitude_m)
+        return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
+                        yaw_rad=heading_of(u), state=state,
                         info={"upwind_deg": math.degrees(heading_of(u)) % 360.0})
+
+    def _carrot(self, obs: Observation, v_ne: np.ndarray, dt: float, altitude_m: float) -> np.ndarray:
+        """Position setpoint (m, NED) moving with the commanded velocity.
+
+        Why a position + velocity feed-forward pair rather than a bare velocity: the autopilot
+        then holds altitude and track on its own navigation solution (no GNSS noise through
+        this 10 Hz loop), as PX4 does with a position-velocity offboard setpoint. The carrot is
+        kept within ``CARROT_MAX_M`` of the observed position so it cannot run away.
+        """
+        pos = obs.position_ned[0:2]
+        if self.carrot is None:
+            self.carrot = pos.copy()
+        self.carrot = self.carrot + np.asarray(v_ne) * dt
+        d = self.carrot - pos
+        dist = float(np.hypot(d[0], d[1]))
+        if dist > CARROT_MAX_M:
+            self.carrot = pos + d * (CARROT_MAX_M / dist)
+        return np.array([self.carrot[0], self.carrot[1], self.start[2] - altitude_m])
 
     def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
         """Fly over the declared point, descend to ``descend_altitude_m``, hold, then done."""
         p = self.p
         d = self.declared[0:2] - obs.position_ned[0:2]
         dist = float(np.hypot(d[0], d[1]))
-        v = d * min(p.speed_m_s, 0.8 * dist) / max(dist, 1e-6)
-        if dist < 1.0:
-            vz = self._vz(obs, p.descend_altitude_m)
-            if math.isnan(self.t_over) and abs(obs.position_ned[2] - (self.start[2] - p.descend_altitude_m)) < 0.3:
-                self.t_over = obs.t
-        else:
-            vz = self._vz(obs, p.altitude_m)
+        over = dist < 1.0
+        alt = p.descend_altitude_m if over else p.altitude_m
+        pos = np.array([self.declared[0], self.declared[1], self.start[2] - alt])
+        if over and math.isnan(self.t_over) and abs(obs.position_ned[2] - pos[2]) < 0.5:
+            self.t_over = obs.t
         done = not math.isnan(self.t_over) and obs.t - self.t_over >= p.descend_hold_s
         return Setpoint(
-            velocity_ned=np.array([v[0], v[1], vz]), yaw_rad=heading_of(u), done=done,
+            position_ned=pos, yaw_rad=heading_of(u), done=done,
             declared_source_ned=self.declared.copy(), confidence=self.confidence,
             state="done" if done else "descend", info={"t_declared": self.t_declared},
         )

@@ -44,12 +44,16 @@ class CommonParams:
     wind_filter_order: int = _p(2, 1, 8, "Butterworth order of the direction filter")
     min_wind_m_s: float = _p(0.5, 0.0, 10.0, "below this horizontal wind speed the direction is ignored [m/s]")
     lost_s: float = _p(2.0, 0.1, 60.0, "time without detection after which the plume counts as lost [s]")
-    declare_after_s: float = _p(10.0, 0.5, 300.0, "time lost, having searched upwind of the best point, "
+    declare_after_s: float = _p(30.0, 0.5, 300.0, "time lost, having searched upwind of the best point, "
                                  "before declaring [s]")
     overshoot_m: float = _p(4.0, 0.0, 50.0, "how far upwind of the most-upwind detection the vehicle must "
                             "have searched before declaring [m]")
-    sensor_lag_s: float = _p(0.5, 0.0, 10.0, "chemical sensor lag: a detection is attributed to the position "
+    sensor_tau_s: float = _p(0.5, 0.01, 30.0, "chemical sensor time constant (its datasheet) [s]")
+    sensor_noise_mg_m3: float = _p(0.01, 0.0, 100.0, "chemical sensor noise, 1-sigma [mg/m^3]")
+    sensor_lag_s: float = _p(0.3, 0.0, 10.0, "chemical sensor lag: a detection is attributed to the position "
                              "this long before it arrived [s]")
+    candidate_min_mg_m3: float = _p(0.2, 0.0, 1e6, "weakest hit that can be the declared source [mg/m^3]")
+    confirmations: int = _p(2, 1, 10, "losses at the same most-upwind hit that confirm the plume end")
     memory_s: float = _p(20.0, 1.0, 600.0, "time window of detections used for the plume centreline [s]")
     centerline_gain: float = _p(0.4, 0.0, 5.0, "lateral velocity per metre off the estimated centreline [1/s]")
     descend_altitude_m: float = _p(1.5, 0.3, 100.0, "altitude of the final descent over the declared source [m]")
@@ -63,17 +67,20 @@ class AnemotaxisParams(CommonParams):
     """Anemotaxis (paper Figs. 16-18): fly upwind on the filtered wind direction."""
 
     speed_m_s: float = _p(2.0, 0.2, 10.0, "ground speed upwind [m/s]")
+    declare_after_s: float = _p(8.0, 0.5, 300.0, "time without detection, upwind of the best point, before "
+                                "declaring [s] (no casting: a lost plume is not searched for)")
 
 
 @dataclass(frozen=True)
 class SurgeCastParams(CommonParams):
     """Silkworm moth surge-cast."""
 
-    surge_persist_s: float = _p(1.5, 0.0, 30.0, "keep surging this long after the last detection [s]")
+    surge_persist_s: float = _p(3.0, 0.0, 30.0, "keep surging this long after the last detection [s]")
     cast_half_width_m: float = _p(4.0, 0.5, 100.0, "first cast half-amplitude, crosswind [m]")
     cast_growth: float = _p(1.5, 1.0, 5.0, "cast amplitude factor after each full sweep")
     cast_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest cast half-amplitude [m]")
-    cast_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift while casting [m/s]")
+    cast_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift of the cast anchor [m/s]")
+    cast_back_m: float = _p(1.0, -20.0, 50.0, "cast anchor: this far downwind of the last detection [m]")
 
 
 @dataclass(frozen=True)
@@ -86,6 +93,8 @@ class ZigzagParams(CommonParams):
     lost_half_width_m: float = _p(6.0, 0.5, 200.0, "first sweep half-width once the plume is lost [m]")
     lost_growth: float = _p(1.5, 1.0, 5.0, "sweep width factor after each lost sweep")
     lost_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest lost sweep half-width [m]")
+    lost_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift of the lost sweep anchor [m/s]")
+    lost_back_m: float = _p(1.0, -20.0, 50.0, "lost sweep anchor: this far downwind of the last detection [m]")
 
 
 #: Fields where NaN means "not set" (documented per field).

@@ -56,10 +56,7 @@ class SurgeCast(BaseStrategy):
             fwd = math.sqrt(p.speed_m_s**2 - lat * lat)
             return fwd * u + lat * n, "surge"
         if self.sweep is None:
-            center = m.centerline(obs.t, n)
-            center = c_now if center is None else center
-            # Start toward the side the centreline is on (or the right if on it).
-            direction = 1.0 if center >= c_now else -1.0
-            self.sweep = Sweep(center, p.cast_half_width_m, p.cast_growth, p.cast_max_half_width_m, direction)
+            self.sweep = Sweep.start(obs.t, pos, u, n, m, p.cast_half_width_m, p.cast_growth,
+                                     p.cast_max_half_width_m, p.cast_drift_m_s, p.cast_back_m)
             self.mode = "cast" if m.n_detect > 0 else "acquire"
-        return self.sweep.velocity(c_now, u, n, p.speed_m_s, p.cast_drift_m_s), self.mode
+        return self.sweep.velocity(obs.t, pos, u, n, p.speed_m_s), self.mode

@@ -68,9 +68,7 @@ class Zigzag(BaseStrategy):
             a = math.radians(p.angle_deg)
             return p.speed_m_s * (math.cos(a) * u + self.side * math.sin(a) * n), "zig"
         if self.sweep is None:
-            center = m.centerline(obs.t, n)
-            center = c_now if center is None else center
-            direction = 1.0 if center >= c_now else -1.0
-            self.sweep = Sweep(center, p.lost_half_width_m, p.lost_growth, p.lost_max_half_width_m, direction)
+            self.sweep = Sweep.start(obs.t, pos, u, n, m, p.lost_half_width_m, p.lost_growth,
+                                     p.lost_max_half_width_m, p.lost_drift_m_s, p.lost_back_m)
             self.mode = "lost" if m.n_detect > 0 else "acquire"
-        return self.sweep.velocity(c_now, u, n, p.speed_m_s, 0.3), self.mode
+        return self.sweep.velocity(obs.t, pos, u, n, p.speed_m_s), self.mode
