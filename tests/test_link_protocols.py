@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from link_support import free_port, running, scenario, udp_to, wait_until
+from link_support import free_port, running, udp_to, wait_until
 from pymavlink import mavutil
 
 import sitl.link.mission_protocol as mission_protocol
@@ -40,6 +40,7 @@ class Peer:
 
     def command(self, cmd: int, *params: float) -> int:
         p = list(params) + [0.0] * (7 - len(params))
+        self.drain()  # a full socket buffer (nobody read it while waiting) would drop the ACK
         self.mav.command_long_send(1, 1, cmd, 0, *p)
         return self.recv("COMMAND_ACK", cond=lambda m: m.command == cmd).result
 
@@ -149,7 +150,8 @@ def test_request_message_and_message_intervals(sitl: tuple[SitlLink, Peer]) -> N
     assert rate == pytest.approx(10.0, rel=0.25)
     assert n_hil == 0
     peer.mav.command_long_send(1, 1, M.MAV_CMD_GET_MESSAGE_INTERVAL, 0, M.MAVLINK_MSG_ID_ATTITUDE, 0, 0, 0, 0, 0, 0)
-    assert peer.recv("MESSAGE_INTERVAL", cond=lambda m: m.message_id == M.MAVLINK_MSG_ID_ATTITUDE).interval_us == 100_000
+    iv = peer.recv("MESSAGE_INTERVAL", cond=lambda m: m.message_id == M.MAVLINK_MSG_ID_ATTITUDE)
+    assert iv.interval_us == 100_000
     # 0 restores the default (100 Hz, PX4 onboard).
     assert peer.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 0) == M.MAV_RESULT_ACCEPTED
     assert link.streams.interval_us(M.MAVLINK_MSG_ID_ATTITUDE) == 10_000
@@ -173,7 +175,8 @@ def test_mission_errors_download_clear(sitl: tuple[SitlLink, Peer], monkeypatch:
     link, peer = sitl
     lat, lon = _geo(link, 5.0, 0.0)
     wp = M.MAV_CMD_NAV_WAYPOINT
-    assert _upload(peer, [_item(0, M.MAV_CMD_NAV_TAKEOFF, alt=3), _item(1, 31000, lat, lon, 3)]) == M.MAV_MISSION_UNSUPPORTED
+    unknown = [_item(0, M.MAV_CMD_NAV_TAKEOFF, alt=3), _item(1, 31000, lat, lon, 3)]
+    assert _upload(peer, unknown) == M.MAV_MISSION_UNSUPPORTED
     assert _upload(peer, [_item(0, wp, lat, lon, 3, frame=M.MAV_FRAME_BODY_FRD)]) == M.MAV_MISSION_UNSUPPORTED_FRAME
     assert _upload(peer, [_item(0, wp, 95.0, lon, 3)]) == M.MAV_MISSION_INVALID_PARAM5_X
     assert _upload(peer, [_item(0, wp, lat, lon, math.nan)]) == M.MAV_MISSION_INVALID_PARAM7

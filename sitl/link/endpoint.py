@@ -152,6 +152,10 @@ class Endpoint:
                 elif "invalid MAVLink CRC" in reason:
                     self.counters["rx_bad_crc"] += 1
                 continue
+            if mtype.startswith("UNKNOWN_"):
+                # A well-formed frame of a message this dialect does not define: not ours to act on.
+                self.counters["rx_unknown_id"] += 1
+                continue
             if msg.get_srcSystem() == SYSTEM_ID and msg.get_srcComponent() == COMPONENT_ID:
                 continue  # our own frames reflected back (e.g. a serial loop)
             self.counters["rx_messages"] += 1

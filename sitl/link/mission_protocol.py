@@ -8,7 +8,8 @@ Set current: MISSION_SET_CURRENT. A rejected upload leaves the previous plan in 
 
 Mission items: NAV_WAYPOINT (param1 hold s, param2 acceptance radius m, param4 yaw deg),
 NAV_TAKEOFF (z), NAV_LAND (x, y or 0/0 = here), NAV_LOITER_TIME (param1 s), NAV_RETURN_TO_LAUNCH,
-DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is). Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
+DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is).
+Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
 (above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
 EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
 NAV_FENCE_RETURN_POINT (stored, not used). Errors use the MAV_MISSION_RESULT codes.
@@ -219,7 +220,7 @@ class MissionProtocol:
             return
         if cmd == mav.MAV_CMD_NAV_DELAY:
             if not (math.isfinite(it["param1"]) and 0 <= it["param1"] <= 86400):
-                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, f"delay {it['param1']} s (time-of-day delays unsupported)")
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, f"delay {it['param1']} s (no time of day)")
             return
         if frame not in POSITION_FRAMES:
             raise ItemError(mav.MAV_MISSION_UNSUPPORTED_FRAME, f"frame {frame} not supported")
