@@ -87,9 +87,10 @@ def rotor_wrench(
     vh2 = u * u + v * v
     vh = math.sqrt(vh2)
     V2 = vh2 + w * w
-    # Effectiveness-loss regressors saturate at the edge of the identified domain.
-    vhc = min(vh, p[P_VH_MAX])
-    wc = min(max(w, -p[P_VZ_MAX]), p[P_VZ_MAX])
+    # Regressors leaving the identified domain saturate smoothly (tanh keeps the model
+    # differentiable and informative for the estimator): see domain_* in the vehicle file.
+    vhc = p[P_VH_MAX] * math.tanh(vh / p[P_VH_MAX])
+    wc = p[P_VZ_MAX] * math.tanh(w / p[P_VZ_MAX])
 
     X = k * u * (p[_CX_MU] * R * rt + nr * (p[_CX_MU2] * abs(u) + p[_CX_MUZ] * wc + p[_CX_MUV] * v0))
     Y = k * v * (p[_CY_MU] * R * rt + nr * (p[_CY_MU2] * abs(v) + p[_CY_MUZ] * wc - p[_CY_MUV] * v0))
