@@ -46,13 +46,18 @@ class UpwindFilter:
     def __init__(self, params: CommonParams) -> None:
         self.filter = DirectionFilter(params.wind_filter_cutoff_hz, params.rate_hz, int(params.wind_filter_order))
         self.min_speed = params.min_wind_m_s
+        self.max_sigma_deg = params.wind_max_sigma_deg
 
     def make(self, wind_ned: np.ndarray, cov_ned: np.ndarray | None) -> WindInfo:
+        """WindInfo for one tick; ``upwind_rad`` is NaN until a usable direction has arrived."""
         w = np.asarray(wind_ned, dtype=float)
         C = np.zeros((3, 3)) if cov_ned is None else np.asarray(cov_ned, dtype=float)
         speed, _, from_deg, from_sig_deg = speed_direction(w, C)
-        # Below the minimum speed the direction is noise: keep the filter where it was.
-        filtered = self.filter.update(from_deg) if speed >= self.min_speed else self.filter.value_deg
+        # Below the minimum speed, or while the estimate has not converged (the filter starts
+        # from zero wind with a large covariance), the direction is noise: do not feed it to
+        # the low-pass, whose state would otherwise start from a wrong direction.
+        usable = speed >= self.min_speed and from_sig_deg <= self.max_sigma_deg
+        filtered = self.filter.update(from_deg) if usable else self.filter.value_deg
         return WindInfo(
             wind_ned=w.copy(), cov_ned=None if cov_ned is None else C,
             upwind_rad=math.radians(filtered) if math.isfinite(filtered) else math.nan,

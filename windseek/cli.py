@@ -14,6 +14,7 @@ import sys
 #: Subcommand modules, in the order shown by ``windseek --help``.
 COMMANDS = [
     "windseek.cmd_sim",
+    "windseek.cmd_search",
     "windseek.cmd_estimate",
     "windseek.cmd_sitl",
 ]

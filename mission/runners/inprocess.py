@@ -130,6 +130,7 @@ def run_trial(
     cause = ""
     t_declared = math.nan
     offboard = False
+    t_air = math.nan
     ok, why = fc.arm()
     if not ok:
         raise RuntimeError(f"cannot arm: {why}")
@@ -157,7 +158,11 @@ def run_trial(
         if not offboard:
             # Take-off: the autopilot climbs and switches to hold when it reaches the altitude.
             if fc.mode == Mode.HOLD and fc.landed_state == LandedState.IN_AIR:
-                offboard = True
+                # Hover until the wind source gives a direction (the estimator converges in a
+                # few seconds), as a real vehicle would before it starts the search.
+                t_air = t if math.isnan(t_air) else t_air
+                waiting = wind_info is not None and not math.isfinite(wind_info.upwind_rad)
+                offboard = not waiting or t - t_air >= p.wind_wait_s
             elif t > 30.0:
                 cause = "takeoff"
                 break

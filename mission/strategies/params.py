@@ -43,6 +43,9 @@ class CommonParams:
     wind_filter_cutoff_hz: float = _p(0.05, 0.001, 5.0, "low-pass cutoff on the upwind direction [Hz]")
     wind_filter_order: int = _p(2, 1, 8, "Butterworth order of the direction filter")
     min_wind_m_s: float = _p(0.5, 0.0, 10.0, "below this horizontal wind speed the direction is ignored [m/s]")
+    wind_max_sigma_deg: float = _p(15.0, 0.1, 180.0, "wind directions less certain than this (1-sigma) are not used "
+                                   "[deg]")
+    wind_wait_s: float = _p(20.0, 0.0, 300.0, "after take-off, hover up to this long for a usable wind direction [s]")
     lost_s: float = _p(2.0, 0.1, 60.0, "time without detection after which the plume counts as lost [s]")
     declare_after_s: float = _p(30.0, 0.5, 300.0, "time lost, having searched upwind of the best point, "
                                  "before declaring [s]")
@@ -88,6 +91,10 @@ class ZigzagParams(CommonParams):
     """Dung-beetle zig-zag."""
 
     angle_deg: float = _p(45.0, 5.0, 85.0, "leg angle off the upwind direction [deg]")
+    lost_s: float = _p(4.0, 0.1, 60.0, "time without detection (after edge_s) after which the plume counts as lost "
+                       "[s]; the legs leave the plume by design, so longer than for surge-cast")
+    overshoot_m: float = _p(6.0, 0.0, 50.0, "how far upwind of the most-upwind hit the vehicle must have searched "
+                            "before declaring [m]")
     edge_s: float = _p(1.0, 0.1, 30.0, "time without detection in a leg that marks the plume edge [s]")
     leg_max_half_width_m: float = _p(12.0, 1.0, 200.0, "turn back this far off the centreline anyway [m]")
     lost_half_width_m: float = _p(6.0, 0.5, 200.0, "first sweep half-width once the plume is lost [m]")
