@@ -1,0 +1,96 @@
+"""Search table: strategy x wind mode x turbulence level, N seeded trials per cell.
+
+Writes a markdown table into ``benchmarks/README.md`` between the markers
+``<!-- search_table:begin -->`` and ``<!-- search_table:end -->`` (appended if absent) and
+prints it. Cells: success rate (declared within 5 m of the true source, horizontally),
+median / 90th-percentile time to declaration (s, successful trials), median path length over
+the start distance, failures by cause. Scenarios: open-field-low / open-field / open-field-high
+(sigma_u 0.5 / 1.0 / 2.0 m/s; 5 m/s from the north, source 60 m upwind, stability D).
+
+    python benchmarks/search_table.py [--trials 50] [--estimated-trials 50] [--jobs 2] [--no-write]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from mission.evaluate import run_batch, summarize
+
+STRATEGIES = ("surge-cast", "zigzag", "anemotaxis")
+WINDS = ("estimated", "oracle", "none")
+LEVELS = (("low", "open-field-low"), ("moderate", "open-field"), ("high", "open-field-high"))
+BEGIN, END = "<!-- search_table:begin -->", "<!-- search_table:end -->"
+
+
+def _f(v: float, nd: int = 0) -> str:
+    return "-" if v != v else f"{v:.{nd}f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=50, help="trials per oracle/none cell")
+    ap.add_argument("--estimated-trials", type=int, default=50, help="trials per estimated-wind cell")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1000, help="seed of the first trial of every cell")
+    ap.add_argument("--strategies", default=",".join(STRATEGIES))
+    ap.add_argument("--winds", default=",".join(WINDS))
+    ap.add_argument("--levels", default=",".join(name for name, _ in LEVELS))
+    ap.add_argument("--no-write", action="store_true", help="print only, do not edit benchmarks/README.md")
+    ap.add_argument("--json", default=None, help="also write the summaries to this JSON file")
+    args = ap.parse_args()
+    levels = [lv for lv in LEVELS if lv[0] in args.levels.split(",")]
+    rows = []
+    t0 = time.perf_counter()
+    for strat in args.strategies.split(","):
+        for wind in args.winds.split(","):
+            for level, scenario in levels:
+                n = args.estimated_trials if wind == "estimated" else args.trials
+                res = run_batch(scenario, strat, wind, n, seed=args.seed, jobs=args.jobs,
+                                label=f"{strat} / {wind} / {level}")
+                s = summarize(res)
+                s["level"] = level
+                rows.append(s)
+                fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "-"
+                print(f"{strat:10s} {wind:9s} {level:8s} n={n:3d} success {100 * s['success_rate']:5.1f} % "
+                      f"t50 {_f(s['time_median_s'])} s t90 {_f(s['time_p90_s'])} s "
+                      f"path {_f(s['path_ratio_median'], 2)} fails: {fails}", flush=True)
+    lines = [
+        BEGIN,
+        "",
+        "## Source search: strategy x wind x turbulence (`benchmarks/search_table.py`)",
+        "",
+        f"Scenarios open-field-low / open-field / open-field-high; seeds {args.seed}.. per cell; "
+        f"{time.strftime('%Y-%m-%d')}, {time.perf_counter() - t0:.0f} s wall with {args.jobs} jobs. "
+        "Success: declared within 5 m of the true source (horizontal). Times (s from t = 0 on the ground) and "
+        "path / start distance are medians over the successful trials.",
+        "",
+        "| strategy | wind | turbulence | trials | success % | t median s | t p90 s | path / start | failures |",
+        "|---|---|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for s in rows:
+        fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "-"
+        lines.append(
+            f"| {s['strategy']} | {s['wind']} | {s['level']} | {s['trials']} | {100 * s['success_rate']:.0f} | "
+            f"{_f(s['time_median_s'])} | {_f(s['time_p90_s'])} | {_f(s['path_ratio_median'], 2)} | {fails} |"
+        )
+    lines += ["", END]
+    table = "\n".join(lines)
+    print(table)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
+    if not args.no_write:
+        readme = Path(__file__).with_name("README.md")
+        text = readme.read_text() if readme.exists() else "# Benchmarks\n"
+        if BEGIN in text and END in text:
+            a, b = text.index(BEGIN), text.index(END) + len(END)
+            text = text[:a] + table + text[b:]
+        else:
+            text = text.rstrip("\n") + "\n\n" + table + "\n"
+        readme.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
