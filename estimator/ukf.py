@@ -60,19 +60,34 @@ QUAT_NORM_TOL = 0.1
 
 
 @njit(cache=True)
-def _specific_force(x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Model specific force (FRD, m/s^2) at state x: rotor forces over mass at the airspeed."""
+def _specific_force(
+    x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, i_scale: int, fz_ref: float
+) -> np.ndarray:
+    """Model specific force (FRD, m/s^2) at state x: rotor forces over mass at the airspeed.
+
+    With a force-scale state s = ``x[i_scale]`` (``i_scale >= 0``, dimensionless, 1 =
+    nominal): s * F_x / m, s * F_y / m and F_z / m + (s - 1) * fz_ref, where ``fz_ref`` is the
+    low-passed measured body-z specific force (m/s^2). To first order in s - 1 this is s * F / m
+    (a mass error); the z correction leaves out the fast thrust fluctuations on purpose (see
+    EstimatorConfig.scale_state).
+    """
     W0, W1, W2 = x[3], x[4], x[5]
     v_air = np.empty(3)
     for i in range(3):
         # R^T W: the wind (NED) seen in body axes.
         v_air[i] = x[i] - (R[0, i] * W0 + R[1, i] * W1 + R[2, i] * W2)
     fm = rotor_wrench(v_air, rates, w_rot, np.zeros(4), p)
-    m = p[P_MASS]
+    im = 1.0 / p[P_MASS]
     out = np.empty(3)
-    out[0] = fm[0] / m
-    out[1] = fm[1] / m
-    out[2] = fm[2] / m
+    if i_scale >= 0:
+        sc = x[i_scale]
+        out[0] = fm[0] * im * sc
+        out[1] = fm[1] * im * sc
+        out[2] = fm[2] * im + (sc - 1.0) * fz_ref
+    else:
+        out[0] = fm[0] * im
+        out[1] = fm[1] * im
+        out[2] = fm[2] * im
     return out
 
 
@@ -86,14 +101,17 @@ def _process_batch(
     w_rot: np.ndarray,
     p: np.ndarray,
     decay_d: float,
+    i_scale: int,
+    fz_ref: float,
 ) -> None:
-    """Propagate every sigma point by one Euler step of Eq. 49. Wind and bias: random walk,
-    except the vertical wind, multiplied by ``decay_d`` (1 = random walk, see EstimatorConfig)."""
+    """Propagate every sigma point by one Euler step of Eq. 49. Wind, scale and bias: random
+    walks, except the vertical wind, multiplied by ``decay_d`` (Ornstein-Uhlenbeck, see
+    EstimatorConfig; 1 = random walk)."""
     g = p[P_G]
     pr, qr, rr = rates[0], rates[1], rates[2]
     for k in range(sigmas.shape[0]):
         x = sigmas[k]
-        f = _specific_force(x, R, rates, w_rot, p)
+        f = _specific_force(x, R, rates, w_rot, p, i_scale, fz_ref)
         u, v, w = x[0], x[1], x[2]
         # Gravity in body axes is the third row of R (R^T [0, 0, g]); the rates x v term is
         # the rotation of the body axes the velocity is expressed in.
@@ -108,15 +126,23 @@ def _process_batch(
 
 
 @njit(cache=True)
-def _accel_batch(sigmas: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Accelerometer measurement model at every sigma point: f(v_air) (+ bias)."""
+def _accel_batch(
+    sigmas: np.ndarray,
+    R: np.ndarray,
+    rates: np.ndarray,
+    w_rot: np.ndarray,
+    p: np.ndarray,
+    i_scale: int,
+    i_bias: int,
+    fz_ref: float,
+) -> np.ndarray:
+    """Accelerometer measurement model at every sigma point: scale * f(v_air) (+ bias)."""
     n = sigmas.shape[0]
     out = np.empty((n, 3))
-    bias = sigmas.shape[1] >= 9
     for k in range(n):
-        f = _specific_force(sigmas[k], R, rates, w_rot, p)
+        f = _specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
         for i in range(3):
-            out[k, i] = f[i] + (sigmas[k, 6 + i] if bias else 0.0)
+            out[k, i] = f[i] + (sigmas[k, i_bias + i] if i_bias >= 0 else 0.0)
     return out
 
 
@@ -134,12 +160,45 @@ class EstimatorConfig:
     vel_walk: tuple[float, float, float] = (0.4, 0.4, 0.6)
     #: Wind random walk (Eq. 53), m/s per sqrt(s): sets how fast turbulence can be followed.
     wind_walk: tuple[float, float, float] = (1.5, 1.5, 1.5)
-    #: Correlation time (s) of the vertical wind, modelled as first-order Gauss-Markov around
-    #: zero instead of a random walk; None = random walk (Eq. 53 as printed). Why: the
-    #: identified model's vertical-airspeed regressors saturate at the edge of its domain
-    #: (|w_air| > 1.5 m/s body axis, Table 3), so at the tilt a 10 m/s wind needs the
-    #: forces carry no information on the vertical wind, and a random walk would wander off.
+    #: Correlation time (s) of the vertical wind, modelled as first-order Gauss-Markov
+    #: (Ornstein-Uhlenbeck) around zero instead of a random walk; None = random walk (Eq. 53
+    #: as printed). Why: at hover a constant vertical wind and a constant error of the force
+    #: model (mass, thrust coefficients, accelerometer z bias) change the measured specific
+    #: force the same way; vertical wind in turbulence is zero-mean over tens of seconds,
+    #: a model error is constant, so the mean-reverting wind lets the force-scale state
+    #: take the constant part. Stationary 1-sigma = wind_walk[2] * sqrt(tau / 2).
     vertical_wind_tau_s: float | None = 3.0
+    #: Force-scale state s (dimensionless, 1 = nominal): the model specific force is
+    #: s * F(v_air) / m on all three body axes, i.e. s = m_model / m_true when the mass is
+    #: wrong. Observable through the vertical axis (the hover thrust must carry the weight),
+    #: it then corrects the horizontal drag too. Prior 1-sigma and random walk per sqrt(s).
+    scale_state: bool = True
+    scale_sigma0: float = 0.05
+    scale_walk_per_sqrt_s: float = 3e-4
+    #: The scale is held at its prior mean (zero variance) during the cold start and released
+    #: with ``scale_sigma0`` once the filter has run ``scale_hold_s`` and every wind 1-sigma
+    #: is below ``scale_release_wind_sigma_m_s``: while the wind is still unknown the
+    #: filter would explain the large early innovations with the scale and lock it in.
+    scale_hold_s: float = 3.0
+    scale_release_wind_sigma_m_s: float = 1.0
+    #: Transient detector (see WindEstimator._watch_innovation): time constant (s) of the
+    #: low-passed normalized accelerometer innovation, its threshold, and how long (s) the
+    #: force scale stays frozen after it fires.
+    transient_tau_s: float = 0.25
+    fz_ref_tau_s: float = 1.0  # low-pass (s) of the measured body-z specific force the scale multiplies
+    transient_threshold: float = 0.5
+    transient_hold_s: float = 3.0
+    #: While the detector fires, the wind random-walk variance is multiplied by this (the wind
+    #: follows a step faster instead of the other states soaking it up).
+    transient_wind_q_gain: float = 10.0
+    #: Model error added to the reported wind covariance (see WindEstimator.model_error_cov):
+    #: relative error of the horizontal drag after the force scale (the Table 5 95 % intervals
+    #: give about 1-2 % at 10 m/s, half of it a bias the 2-sigma band must cover), and an
+    #: absolute vertical-wind term, m/s.
+    model_error_rel_h: float = 0.008
+    model_error_d_m_s: float = 0.4
+    #: Accelerometer-bias states (FRD). Off by default: at a constant heading a horizontal
+    #: bias is indistinguishable from a wind change, and the z bias from the force scale.
     bias_states: bool = False
     bias_walk_m_s2: float = 0.002  # per sqrt(s)
     bias_sigma0_m_s2: float = 0.05
@@ -216,21 +275,42 @@ class WindEstimator:
         self.config = cfg = config or EstimatorConfig()
         self.params = params
         self._p = params.as_array()
-        self.n = 9 if cfg.bias_states else 6
+        n = 6
+        self._i_scale = -1  # index of the force-scale state, -1 = none
+        self._i_bias = -1  # index of the first accelerometer-bias state, -1 = none
+        P0 = [cfg.vel_sigma0_m_s**2] * 3 + [cfg.wind_sigma0_m_s**2] * 3
+        q = list(np.square(cfg.vel_walk)) + list(np.square(cfg.wind_walk))
+        x0 = [0.0] * 6
+        if cfg.scale_state:
+            self._i_scale = n
+            n += 1
+            P0.append(1e-12)  # held until released, see EstimatorConfig.scale_hold_s
+            q.append(0.0)
+            x0.append(1.0)
+        if cfg.bias_states:
+            self._i_bias = n
+            n += 3
+            P0 += [cfg.bias_sigma0_m_s2**2] * 3
+            q += [cfg.bias_walk_m_s2**2] * 3
+            x0 += [0.0] * 3
+        self.n = n
         points = MerweScaledSigmaPoints(self.n, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
         self.ukf = _UKF(dim_x=self.n, dim_z=3, dt=0.004, hx=None, fx=None, points=points)
-        self.ukf.x = np.zeros(self.n)
-        P0 = [cfg.vel_sigma0_m_s**2] * 3 + [cfg.wind_sigma0_m_s**2] * 3
-        if cfg.bias_states:
-            P0 += [cfg.bias_sigma0_m_s2**2] * 3
+        self.ukf.x = np.array(x0)
         self.ukf.P = np.diag(P0)
-        q = list(np.square(cfg.vel_walk)) + list(np.square(cfg.wind_walk))
-        if cfg.bias_states:
-            q += [cfg.bias_walk_m_s2**2] * 3
         self._q_density = np.array(q)
         self._R_accel = np.diag(np.square(cfg.accel_noise_m_s2))
         self._R_gnss = np.diag(np.square(cfg.gnss_vel_noise_m_s))
         self.t: float | None = None  # filter time, s
+        self._t_first: float | None = None  # time of the first prediction, s
+        self.scale_released = not cfg.scale_state
+        self._nu_ema = np.zeros(3)
+        self._fz_ref = -float(self._p[P_G])  # low-passed measured body-z specific force, m/s^2
+        self._fz_seen = False
+        self._ema_alpha = 1.0
+        self._transient_left = 0.0  # s
+        self._wind_q_gain = 1.0  # wind process-noise multiplier (> 1 while a transient is detected)
+        self.transients = 0  # times the transient detector fired
         self._R: np.ndarray | None = None  # attitude DCM body->NED
         self._q_att: np.ndarray | None = None
         self._rates = np.zeros(3)
@@ -326,6 +406,12 @@ class WindEstimator:
         if gyro_frd is not None:
             self._rates = g.copy()
         self.predict_to(t)
+        if self._fz_seen:
+            self._fz_ref += min(1.0, self._ema_alpha * self.config.transient_tau_s / self.config.fz_ref_tau_s) * (
+                a[2] - self._fz_ref
+            )
+        else:
+            self._fz_ref, self._fz_seen = float(a[2]), True
         self._update(a, self._R_accel, "accel")
         self.accepted["imu"] += 1
         self._record_history()
@@ -363,20 +449,43 @@ class WindEstimator:
     def predict_to(self, t: float) -> None:
         """Predict the state to time t (s) with the held inputs; covariance grows over gaps."""
         if self.t is None:
-            self.t = t
+            self.t = self._t_first = t
             return
+        if not self.scale_released:
+            self._maybe_release_scale(t)
+        span = t - self.t
+        if span > 0.0:
+            self._transient_left -= span
+            self._ema_alpha = min(1.0, span / self.config.transient_tau_s)
         span = min(t - self.t, self.config.max_gap_s)
         if span > 0.0 and self.ready:
             n = max(1, math.ceil(span / self.config.max_step_s - 1e-9))
             dt = span / n
             tau = self.config.vertical_wind_tau_s
             decay = math.exp(-dt / tau) if tau else 1.0
-            self.ukf.proc_args = (self._R, self._rates, self._w_rot, self._p, decay)
+            self.ukf.proc_args = (self._R, self._rates, self._w_rot, self._p, decay, self._i_scale, self._fz_ref)
+            q = self._q_density
+            if self._wind_q_gain != 1.0:
+                q = q.copy()
+                q[3:6] *= self._wind_q_gain
             for _ in range(n):
-                self.ukf.Q = np.diag(self._q_density * dt)
+                self.ukf.Q = np.diag(q * dt)
                 self._guarded(lambda: self.ukf.predict(dt=dt))
             self._fresh_sigmas = True
         self.t = max(self.t, t)
+
+    def _maybe_release_scale(self, t: float) -> None:
+        cfg = self.config
+        if t - self._t_first < cfg.scale_hold_s:
+            return
+        if np.max(np.diag(self.ukf.P)[3:6]) > cfg.scale_release_wind_sigma_m_s**2:
+            return
+        i = self._i_scale
+        self.ukf.P[i, :] = 0.0
+        self.ukf.P[:, i] = 0.0
+        self.ukf.P[i, i] = cfg.scale_sigma0**2
+        self._q_density[i] = cfg.scale_walk_per_sqrt_s**2
+        self.scale_released = True
 
     def _update(self, z: np.ndarray, R: np.ndarray, kind: str) -> None:
         ukf = self.ukf
@@ -385,17 +494,59 @@ class WindEstimator:
             # in the same step needs points drawn from the updated (x, P).
             ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
         if kind == "accel":
-            h = _accel_batch(ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p)
+            h = _accel_batch(
+                ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p, self._i_scale, self._i_bias, self._fz_ref
+            )
         else:
             Rm = self._R
             h = (ukf.sigmas_f[:, 0:3] @ Rm.T)[:, : len(z)]
-        it = iter(h)
-
-        def run() -> None:
-            ukf.update(z, R=R, hx=lambda _s: next(it))
-
-        self._guarded(run)
+        self._guarded(lambda: self._ukf_update(z, R, h, kind))
         self._fresh_sigmas = False
+
+    def _ukf_update(self, z: np.ndarray, R: np.ndarray, h: np.ndarray, kind: str) -> None:
+        """Unscented update with measurement sigma points ``h``; the force scale only learns
+        from the body-z accelerometer innovation, and not during a transient.
+
+        The scale's gain row is restricted (a suboptimal gain), so the covariance is updated
+        in the general form P - K Pxz^T - Pxz K^T + K S K^T, valid for any gain.
+        """
+        ukf = self.ukf
+        Wm, Wc = ukf.Wm, ukf.Wc
+        zp = Wm @ h
+        dz = h - zp
+        S = (dz.T * Wc) @ dz + R
+        Pxz = ((ukf.sigmas_f - ukf.x).T * Wc) @ dz
+        K = np.linalg.solve(S, Pxz.T).T
+        y = z - zp
+        i = self._i_scale
+        if kind == "accel":
+            self._watch_innovation(y, S)
+        if i >= 0:
+            K[i, :] = 0.0
+            if kind == "accel" and self.scale_released and self._transient_left <= 0.0:
+                K[i, 2] = Pxz[i, 2] / S[2, 2]
+            KP = K @ Pxz.T
+            ukf.P = ukf.P - KP - KP.T + K @ S @ K.T
+        else:
+            ukf.P = ukf.P - K @ S @ K.T
+        ukf.x = ukf.x + K @ y
+
+    def _watch_innovation(self, y: np.ndarray, S: np.ndarray) -> None:
+        """Transient detector: a low-passed normalized accelerometer innovation far from zero
+        means the wind is changing faster than its random walk. While it lasts the wind
+        process noise is raised (``transient_wind_q_gain``), and for ``transient_hold_s`` after
+        it the force scale is frozen (a wind step must not be explained by a mass change)."""
+        cfg = self.config
+        a = self._ema_alpha
+        nu = y / np.sqrt(np.diag(S))
+        self._nu_ema = (1.0 - a) * self._nu_ema + a * nu
+        if np.max(np.abs(self._nu_ema)) > cfg.transient_threshold:
+            if self._transient_left <= 0.0:
+                self.transients += 1
+            self._transient_left = cfg.transient_hold_s
+            self._wind_q_gain = cfg.transient_wind_q_gain
+        else:
+            self._wind_q_gain = 1.0
 
     def _guarded(self, op) -> None:
         """Run a filter operation; on a numerical failure restore the state and count it."""
@@ -442,7 +593,28 @@ class WindEstimator:
 
     @property
     def wind_cov(self) -> np.ndarray:
-        return self.ukf.P[3:6, 3:6].copy()
+        """Covariance of the wind (NED, (m/s)^2): the filter's plus the model-error term
+        (see :meth:`model_error_cov`). This is what the +-2 sigma band and WIND_COV report."""
+        return self.ukf.P[3:6, 3:6] + self.model_error_cov()
+
+    def model_error_cov(self) -> np.ndarray:
+        """Wind covariance (NED, (m/s)^2) from force-model error the filter cannot see.
+
+        A coefficient error of Eq. 46 biases the wind estimate by a constant fraction of the
+        airspeed; a bias does not average down, so it is not fed to the filter as white noise
+        (that would only make the estimate noisier) but added to the reported covariance:
+        (model_error_rel_h * horizontal airspeed)^2 on north and east, and
+        model_error_d_m_s^2 on down.
+        """
+        cfg = self.config
+        C = np.zeros((3, 3))
+        if self._R is None:
+            return C
+        v_air_ned = self._R @ self.ukf.x[0:3] - self.ukf.x[3:6]
+        sh = cfg.model_error_rel_h * math.hypot(v_air_ned[0], v_air_ned[1])
+        C[0, 0] = C[1, 1] = sh * sh
+        C[2, 2] = cfg.model_error_d_m_s**2
+        return C
 
     @property
     def state(self) -> np.ndarray:
@@ -455,7 +627,7 @@ class WindEstimator:
     def estimate(self, advance_direction: bool = True) -> WindEstimate:
         """Current estimate. ``advance_direction`` feeds the Butterworth one sample (call once per step)."""
         W = self.ukf.x[3:6].copy()
-        C = self.ukf.P[3:6, 3:6].copy()
+        C = self.wind_cov
         s, s_sig, d, d_sig = speed_direction(W, C)
         if advance_direction:
             self._dir_filtered = self.direction.update(d)
