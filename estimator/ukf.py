@@ -617,6 +617,14 @@ class WindEstimator:
         return C
 
     @property
+    def force_scale(self) -> tuple[float, float]:
+        """Force-scale estimate and its 1-sigma (dimensionless; (1, 0) without the state)."""
+        i = self._i_scale
+        if i < 0:
+            return 1.0, 0.0
+        return float(self.ukf.x[i]), float(math.sqrt(max(self.ukf.P[i, i], 0.0)))
+
+    @property
     def state(self) -> np.ndarray:
         return self.ukf.x.copy()
 
