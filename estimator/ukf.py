@@ -8,17 +8,36 @@ Conventions (the whole project's):
   V_w is the negative of ours.)
 - Directions are FROM-directions in degrees, 0 = from north, 90 = from east.
 
-State x (6 or 9): [u, v, w] ground velocity in body axes (FRD, m/s), [W_n, W_e, W_d] wind
-(NED, m/s), optionally [b_x, b_y, b_z] accelerometer bias (FRD, m/s^2).
+State x: [u, v, w] ground velocity in body axes (FRD, m/s), [W_n, W_e, W_d] wind (NED,
+m/s), by default a force scale s (dimensionless, 1 = nominal), optionally [b_x, b_y, b_z]
+accelerometer bias (FRD, m/s^2).
 Inputs (held between their samples): attitude q, body rates (gyro), rotor speeds.
 Process model (Eq. 49, 53), per step dt:
     v_air  = v_body - R^T W
-    f      = rotor_wrench(v_air, rates, Omega, 0, p)[0:3] / m      (specific force, FRD)
+    F      = rotor_wrench(v_air, rates, Omega, 0, p)[0:3]           (rotor force, FRD, N)
+    f      = [s F_x / m, s F_y / m, F_z / m + (s - 1) fz_ref]        (specific force, FRD)
     v_body += dt (f + R^T [0, 0, g] - rates x v_body)
-    W, b   : random walks
+    W_n, W_e, s, b : random walks;  W_d : Ornstein-Uhlenbeck (mean-reverting to 0)
 Measurements, each at its own rate (asynchronous updates):
     accelerometer   h = f(v_air) + b     (FRD specific force, every IMU sample)
     GNSS velocity   h = R v_body         (NED, at the sample's time of validity, see below)
+
+Force scale (model error). At hover a constant vertical wind and a constant force-model
+error (a mass known to a few %, thrust coefficients, accelerometer z bias) change the
+measured specific force alike; vertical turbulence is zero-mean over tens of seconds, a model
+error is constant, so with a mean-reverting W_d the constant part goes to s. s = m_model /
+m_true for a mass error and then corrects the horizontal drag too. Three guards keep it from
+soaking up wind: (1) its gain uses only the body-z accelerometer innovation (the horizontal
+axes cannot tell a drag scale from a wind change); (2) the z correction multiplies the
+low-passed measured z specific force ``fz_ref``, not the instantaneous thrust, so the fast
+thrust fluctuations (whose gain the 50 Hz held ESC samples distort) carry no information on
+it; (3) it is held at 1 through the cold start and frozen while and shortly after a
+transient detector (low-passed normalized innovation) fires; the detector also raises the
+wind process noise so the wind takes a step quickly.
+
+Reported covariance: the filter's plus a model-error term (``model_error_cov``) for the
+coefficient errors the scale cannot absorb, so that the +-2 sigma band stays honest when the
+model is wrong.
 
 The force model is the simulator's own ``sitl.rotor_model.rotor_wrench`` (called from the
 numba kernels here), so the estimator and the simulator cannot drift apart; the parameter
@@ -241,7 +260,8 @@ class _UKF(UnscentedKalmanFilter):
     """filterpy's UKF with the two Python loops over sigma points replaced by array code.
 
     ``compute_process_sigmas`` runs the numba process kernel over all sigma points at once
-    and ``cross_variance`` is one matrix product; predict/update are filterpy's own.
+    and ``cross_variance`` is one matrix product; predict is filterpy's own, the update is
+    :meth:`WindEstimator._ukf_update` (restricted force-scale gain).
     """
 
     proc_args: tuple = ()
