@@ -50,6 +50,7 @@ def running(transports: list[Transport], sc: Scenario | None = None, speed: floa
         yield link
     finally:
         link.close()
+    assert link.error is None, f"the SITL loop died: {link.error!r}"
 
 
 def udp_to(port: int) -> UdpTransport:

@@ -165,10 +165,18 @@ class SitlLink:
                 self.endpoint.poll(min(max(wait, 0.0), 0.05))
             self.missions.tick()
 
+    def _serve_logged(self) -> None:
+        try:
+            self.serve()
+        except Exception as e:  # keep the reason: a silent dead thread looks like a lost link
+            log.exception("SITL link loop stopped")
+            self.error = e
+
     def start(self) -> SitlLink:
-        """Serve in a background thread (tests, embedding)."""
+        """Serve in a background thread (tests, embedding); a crash is kept in :attr:`error`."""
         self._stop.clear()
-        self._thread = threading.Thread(target=self.serve, name="sitl-link", daemon=True)
+        self.error: Exception | None = None
+        self._thread = threading.Thread(target=self._serve_logged, name="sitl-link", daemon=True)
         self._thread.start()
         return self
 
