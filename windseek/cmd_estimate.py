@@ -2,8 +2,9 @@
 
 Figures (see ``estimator.metrics``): RMSE per axis N, E, D (m/s) of the instantaneous
 estimate against the true total wind and of 1-s averages, horizontal RMSE, direction RMSE
-(deg), 2-sigma coverage, re-convergence after the scenario's wind steps (s), and the
-estimator's cost per IMU step (us, predict + updates + outputs).
+(deg), 2-sigma coverage, re-convergence after the scenario's wind steps (s), the
+estimator's cost per IMU step (us, predict + updates + outputs), and the final force-scale
+estimate (dimensionless) next to the model/true mass ratio it should approach.
 """
 
 from __future__ import annotations
@@ -65,6 +66,9 @@ def estimate(
     out.update(acc.as_dict())
     out["us_per_step"] = round(log.us_per_step, 1)
     out["rejected"] = log.rejected
+    s, s_sig = runner.estimator.force_scale
+    out["force_scale"] = {"estimate": round(s, 5), "sigma": round(s_sig, 5)}
+    out["model_force_ratio"] = round(runner.params.mass_kg / runner.sim.vehicle.mass_kg, 5)  # m_model / m_true
     out["final_wind_ned_ms"] = [round(float(v), 3) for v in log.wind_est[-1]] if len(log.t) else None
     return out
 
@@ -88,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
     if out["reconverge_s"] is not None:
         print(f"  re-convergence after the wind step: {out['reconverge_s']:.2f} s")
     print(f"  estimator cost: {out['us_per_step']:.0f} us per IMU step; final wind NED {out['final_wind_ned_ms']} m/s")
+    fs = out["force_scale"]
+    print(f"  force scale {fs['estimate']:.4f} +- {fs['sigma']:.4f} "
+          f"(mass ratio model/true {out['model_force_ratio']:.4f})")
     if out["rejected"]:
         print(f"  rejected inputs: {out['rejected']}")
     return 0
