@@ -92,6 +92,7 @@ class SitlLink:
         self.speed = float(speed)
 
     def mission_changed(self) -> None:
+        self.telemetry.rtl_handover = None
         self._last_index = -1  # announce MISSION_CURRENT at the next chunk
 
     # ------------------------------------------------------------------ small handlers
@@ -133,6 +134,8 @@ class SitlLink:
                 # PX4 hands a NAV_RETURN_TO_LAUNCH item over to RTL mode without reporting it
                 # reached, and MAVSDK's is_mission_finished() counts on exactly that.
                 if i < len(fc.mission) and fc.mission[i].kind == ItemKind.RTL:
+                    tel.rtl_handover = i
+                    self._last_index = -1  # announce the completed state now
                     continue
                 out.append(mav.MAVLink_mission_item_reached_message(i))
             fc.mission_reached.clear()

@@ -108,7 +108,10 @@ class Telemetry:
         self.esc_counter = 0
         self._mag_new = False
         self._baro_new = False
-        self.unix_epoch_us = int(time.time() * 1e6)  # SYSTEM_TIME's UNIX time = this + sim time
+        self.unix_epoch_us = int(time.time() * 1e6)
+        # Index of a final NAV_RETURN_TO_LAUNCH item handed over to RTL mode: the mission is then
+        # complete (PX4 reports MISSION_STATE_COMPLETE; MAVSDK 4 reads it as "mission finished").
+        self.rtl_handover: int | None = None  # SYSTEM_TIME's UNIX time = this + sim time
 
     # ------------------------------------------------------------------ state
     def ingest(self, samples: dict[str, list]) -> None:
@@ -339,9 +342,11 @@ class Telemetry:
         fc = self.sim.fc
         n = len(fc.mission)
         seq = min(fc.mission_index, max(n - 1, 0))
+        if fc.mode == Mode.MISSION:
+            self.rtl_handover = None
         if n == 0:
             state = mavlink.MISSION_STATE_NO_MISSION
-        elif fc.mission_index >= n:
+        elif fc.mission_index >= n or self.rtl_handover == fc.mission_index:
             state = mavlink.MISSION_STATE_COMPLETE
         elif fc.mode == Mode.MISSION:
             state = mavlink.MISSION_STATE_ACTIVE
