@@ -18,6 +18,7 @@ import time
 
 from sitl.flight_modes import ItemKind, Mode
 from sitl.link.commands import CommandHandler
+from sitl.link.datalink import DataLinkFailsafe
 from sitl.link.dialect import mavlink as mav
 from sitl.link.endpoint import Endpoint, Link, targets_us
 from sitl.link.geofence import Geofence
@@ -60,6 +61,7 @@ class SitlLink:
         self.offboard = OffboardHandler(self)
         self.params = ParamTable(self)
         self.param_protocol = ParamProtocol(self, self.params)
+        self.datalink = DataLinkFailsafe(self)  # NAV_DLL_ACT: land when the ground link's heartbeats stop
         ep = self.endpoint
         ep.handlers["HEARTBEAT"] = lambda msg, link: None
         ep.handlers["TIMESYNC"] = self.on_timesync
