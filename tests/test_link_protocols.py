@@ -15,6 +15,7 @@ from link_support import free_port, running, udp_to, wait_until
 from pymavlink import mavutil
 
 import sitl.link.mission_protocol as mission_protocol
+from sitl.controller import SP_POS, SP_YAW
 from sitl.flight_modes import Mode
 from sitl.link import SitlLink
 from sitl.link.dialect import mavlink as M  # noqa: N812  (the MAVLink 2 constants and message classes)
@@ -262,7 +263,7 @@ def test_offboard_stream_loss_falls_back_to_hold(sitl: tuple[SitlLink, Peer]) ->
     assert peer.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
     assert peer.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan) == M.MAV_RESULT_ACCEPTED
     wait_until(lambda: link.sim.fc.mode == Mode.HOLD and link.sim.position[2] < -2.5, 15.0, "take-off")
-    mask = 0b0000_1101_1111_1000  # position + yaw
+    mask = 0b0000_1101_1111_1000  # position only
     for _ in range(5):
         peer.mav.set_position_target_local_ned_send(0, 1, 1, 1, mask, 1.0, 0, -3.0, 0, 0, 0, 0, 0, 0, 0, 0)
         time.sleep(0.02)
@@ -275,3 +276,47 @@ def test_offboard_stream_loss_falls_back_to_hold(sitl: tuple[SitlLink, Peer]) ->
     # Allow for the 20 ms wall (80 ms simulated) sleep after the last setpoint.
     assert 0.85 <= link.sim.t - t_stop <= link.sim.fc.config.offboard_timeout_s + 0.5
     peer.recv("HEARTBEAT", cond=lambda m: m.custom_mode == (4 << 16) | (3 << 24))
+
+
+def test_heartbeat_sys_status_prearm_and_landed_state(sitl: tuple[SitlLink, Peer]) -> None:
+    link, peer = sitl
+    hb = peer.recv("HEARTBEAT", cond=lambda m: m.get_srcSystem() == 1)
+    assert hb.base_mode & M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED and not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+    st = peer.recv("SYS_STATUS")
+    needed = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x200000 | 0x10000000  # what MAVSDK's health checks read
+    assert st.onboard_control_sensors_present & needed == needed
+    assert st.onboard_control_sensors_health & needed == needed
+    assert peer.recv("EXTENDED_SYS_STATE").landed_state == M.MAV_LANDED_STATE_ON_GROUND
+    # A failing pre-arm check clears the pre-arm health bit and makes arming fail with a STATUSTEXT.
+    link.sim.fc.prearm_checks.append(lambda: "test interlock")
+    peer.drain()
+    assert not peer.recv("SYS_STATUS").onboard_control_sensors_health & 0x10000000
+    assert peer.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
+    assert "test interlock" in peer.recv("STATUSTEXT", cond=lambda m: "Preflight" in m.text).text
+    link.sim.fc.prearm_checks.pop()
+    assert peer.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    hb = peer.recv("HEARTBEAT", cond=lambda m: m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+    assert hb.system_status == M.MAV_STATE_ACTIVE
+    assert peer.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0) == M.MAV_RESULT_ACCEPTED
+
+
+def test_global_and_attitude_setpoints_are_converted(sitl: tuple[SitlLink, Peer]) -> None:
+    link, peer = sitl
+    fc = link.sim.fc
+    lat, lon = _geo(link, 7.0, -2.0)
+    pos_yaw = 0b0000_1001_1111_1000  # position and yaw used; velocity, acceleration, yaw rate ignored
+    peer.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, pos_yaw,
+                                                 int(lat * 1e7), int(lon * 1e7), 5.0, 0, 0, 0, 0, 0, 0, 1.0, 0)  # fmt: skip
+    wait_until(lambda: link.counters["setpoints"] >= 1, 2.0, "global setpoint")
+    sp = fc._offb_sp  # the offboard setpoint vector the flight controller stored (sitl.controller layout)
+
+    assert sp[SP_POS:SP_POS + 3] == pytest.approx([7.0, -2.0, -5.0], abs=0.02)
+    assert sp[SP_YAW] == pytest.approx(1.0)
+    peer.mav.set_attitude_target_send(0, 1, 1, 0b0000_0111, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, 0.6)
+    wait_until(lambda: link.counters["setpoints"] >= 2, 2.0, "attitude setpoint")
+    # Refused: a non-unit quaternion, a thrust above 1, a rate-only command.
+    peer.mav.set_attitude_target_send(0, 1, 1, 0b0000_0111, [3.0, 0.0, 0.0, 0.0], 0, 0, 0, 0.6)
+    peer.mav.set_attitude_target_send(0, 1, 1, 0b0000_0111, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, 1.5)
+    peer.mav.set_attitude_target_send(0, 1, 1, 0b1000_0000, [1.0, 0.0, 0.0, 0.0], 0.1, 0, 0, 0.5)
+    wait_until(lambda: link.counters["setpoints_rejected"] >= 3, 2.0, "rejections counted")
+    assert link.counters["setpoints"] == 2
