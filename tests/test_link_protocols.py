@@ -305,8 +305,9 @@ def test_global_and_attitude_setpoints_are_converted(sitl: tuple[SitlLink, Peer]
     fc = link.sim.fc
     lat, lon = _geo(link, 7.0, -2.0)
     pos_yaw = 0b0000_1001_1111_1000  # position and yaw used; velocity, acceleration, yaw rate ignored
-    peer.mav.set_position_target_global_int_send(0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, pos_yaw,
-                                                 int(lat * 1e7), int(lon * 1e7), 5.0, 0, 0, 0, 0, 0, 0, 1.0, 0)  # fmt: skip
+    frame = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    peer.mav.set_position_target_global_int_send(0, 1, 1, frame, pos_yaw, int(lat * 1e7), int(lon * 1e7), 5.0,
+                                                 0, 0, 0, 0, 0, 0, 1.0, 0)  # fmt: skip
     wait_until(lambda: link.counters["setpoints"] >= 1, 2.0, "global setpoint")
     sp = fc._offb_sp  # the offboard setpoint vector the flight controller stored (sitl.controller layout)
 
