@@ -118,7 +118,7 @@ async def test_cli_serial_pty_mavsdk_arm_takeoff_and_sigint(tmp_path: Path) -> N
 def test_cli_udp_peers_and_sigterm(tmp_path: Path) -> None:
     port = free_port()
     peer = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=200, dialect="common")
-    proc = _sitl(tmp_path, "--udp", f"127.0.0.1:{port}", "--true-wind-hz", "0")
+    proc = _sitl(tmp_path, "--udp", f"127.0.0.1:{port}", "--true-wind-hz", "0", "--hil-decimation", "5")
     try:
         hb = peer.recv_match(type="HEARTBEAT", blocking=True, timeout=15)
         assert hb is not None, "no HEARTBEAT on the configured UDP peer"
@@ -126,11 +126,19 @@ def test_cli_udp_peers_and_sigterm(tmp_path: Path) -> None:
         assert hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR and hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4
         assert hb.custom_mode == (4 << 16) | (3 << 24)  # AUTO.LOITER on the ground
         assert hb.system_status == mavutil.mavlink.MAV_STATE_STANDBY
-        # --true-wind-hz 0: no simulation-only named values on the link.
-        t_end = time.monotonic() + 1.0
+        # --true-wind-hz 0: no simulation-only named values on the link; --hil-decimation 5: HIL_SENSOR
+        # at 250 / 5 = 50 Hz, the rate of ATTITUDE_QUATERNION.
+        n = {"HIL_SENSOR": 0, "ATTITUDE_QUATERNION": 0}
+        t_end = time.monotonic() + 1.5
         while time.monotonic() < t_end:
-            m = peer.recv_match(type="NAMED_VALUE_FLOAT", blocking=True, timeout=0.2)
-            assert m is None or not m.name.startswith("TRUEW")
+            m = peer.recv_match(blocking=True, timeout=0.2)
+            if m is None:
+                continue
+            assert m.get_type() != "NAMED_VALUE_FLOAT" or not m.name.startswith("TRUEW")
+            if m.get_type() in n:
+                n[m.get_type()] += 1
+        assert n["ATTITUDE_QUATERNION"] > 50
+        assert n["HIL_SENSOR"] == pytest.approx(n["ATTITUDE_QUATERNION"], rel=0.15)
     finally:
         out, err = _stop(proc, signal.SIGTERM)
         peer.close()

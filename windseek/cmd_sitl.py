@@ -14,6 +14,7 @@ import signal
 import sys
 
 from sitl.link import SerialTransport, SitlLink, TcpServerTransport, UdpTransport
+from sitl.link.dialect import mavlink
 from sitl.link.transports import parse_host_port, parse_serial
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
@@ -30,8 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml")
     p.add_argument("--speed", type=float, default=1.0, help="simulation seconds per wall-clock second (default 1)")
-    p.add_argument("--udp", action="append", metavar="HOST:PORT",
-                   help="UDP peer to stream to (repeatable; default 127.0.0.1:14540 and 127.0.0.1:14550)")
+    p.add_argument("--udp", action="extend", nargs="+", metavar="HOST:PORT",
+                   help="UDP peers to stream to (one or more, repeatable; default 127.0.0.1:14540 127.0.0.1:14550)")
     p.add_argument("--udp-bind", default="0.0.0.0:0", metavar="HOST:PORT",
                    help="local UDP address (default an ephemeral port on all interfaces)")
     p.add_argument("--no-udp", action="store_true", help="no UDP link at all")
@@ -40,6 +41,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
     p.add_argument("--true-wind-hz", type=float, default=5.0,
                    help="rate of the simulation-only TRUEWN/TRUEWE/TRUEWD values (0 = off)")
+    p.add_argument("--hil-decimation", type=int, default=1, metavar="N",
+                   help="send HIL_SENSOR for every N-th IMU sample (default 1: the IMU rate)")
     p.set_defaults(func=run)
 
 
@@ -59,7 +62,12 @@ def build(args: argparse.Namespace) -> SitlLink:
             transports.append(SerialTransport(dev, baud))
         if not transports:
             raise ValueError("no link: give --udp, --tcp or --serial (or drop --no-udp)")
-        return SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz)
+        if args.hil_decimation < 1:
+            raise ValueError(f"--hil-decimation {args.hil_decimation}: must be an integer >= 1")
+        link = SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz)
+        imu_hz = sc.sensors.imu.rate_hz
+        link.streams.set_interval(mavlink.MAVLINK_MSG_ID_HIL_SENSOR, 1e6 * args.hil_decimation / imu_hz, 0.0)
+        return link
     except Exception:
         for t in transports:
             t.close()
