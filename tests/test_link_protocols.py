@@ -220,9 +220,12 @@ def test_mission_errors_download_clear(sitl: tuple[SitlLink, Peer], monkeypatch:
     peer.mav.mission_request_int_send(1, 1, 7, 0)
     assert peer.recv("MISSION_ACK").type == M.MAV_MISSION_INVALID_SEQUENCE
     peer.mav.mission_ack_send(1, 1, 0, 0)
-    # Set current, then clear.
+    # Set current (message and command), then clear.
     peer.mav.mission_set_current_send(1, 1, 1)
     assert peer.recv("MISSION_CURRENT", cond=lambda m: m.seq == 1).total == 4
+    assert peer.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 2) == M.MAV_RESULT_ACCEPTED
+    assert fc.mission_index == 2
+    assert peer.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 9) == M.MAV_RESULT_DENIED
     peer.mav.mission_clear_all_send(1, 1, 0)
     assert peer.recv("MISSION_ACK").type == M.MAV_MISSION_ACCEPTED
     assert fc.mission == []

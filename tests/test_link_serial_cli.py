@@ -100,6 +100,10 @@ async def test_cli_serial_pty_mavsdk_arm_takeoff_and_sigint(tmp_path: Path) -> N
                 tel, action = TelemetryAsync(drone), ActionAsync(drone)
                 await first(tel.subscribe_health_all_ok(), bool, 10.0, "health all ok")
                 await action.arm()
+                await first(tel.subscribe_armed(), bool, 5.0, "armed")
+                await action.disarm()
+                await first(tel.subscribe_armed(), lambda a: not a, 5.0, "disarmed on the ground")
+                await action.arm()
                 await action.takeoff()
                 pos = await first(tel.subscribe_position(), lambda p: p.relative_altitude_m > 1.5, 15.0, "climb")
                 assert pos.relative_altitude_m < 3.0

@@ -2,7 +2,8 @@
 
 Supported: COMPONENT_ARM_DISARM (pre-arm checks, 21196 forces a disarm in the air),
 NAV_TAKEOFF (param7 AMSL altitude, NaN = MIS_TAKEOFF_ALT), NAV_LAND, NAV_RETURN_TO_LAUNCH,
-DO_SET_MODE (PX4 custom main/sub modes), MISSION_START, DO_REPOSITION, DO_CHANGE_SPEED,
+DO_SET_MODE (PX4 custom main/sub modes), MISSION_START, DO_SET_MISSION_CURRENT, DO_REPOSITION,
+DO_CHANGE_SPEED,
 SET_MESSAGE_INTERVAL, GET_MESSAGE_INTERVAL, REQUEST_MESSAGE, REQUEST_AUTOPILOT_CAPABILITIES.
 Anything else: MAV_RESULT_UNSUPPORTED. A supported command with bad parameters: DENIED; a
 command the vehicle cannot do in its state: TEMPORARILY_REJECTED or DENIED, as PX4 does.
@@ -107,7 +108,7 @@ class CommandHandler:
                 ok, _ = fc.arm()
                 return ACCEPTED if ok else DENIED
             if p[0] == 0.0:
-                ok, _ = fc.disarm(force=int(p[1]) == FORCE_MAGIC)
+                ok, _ = fc.disarm(force=p[1] == FORCE_MAGIC)  # param2 may be NaN (MAVSDK)
                 return ACCEPTED if ok else DENIED
             return DENIED
         if cmd == mav.MAV_CMD_NAV_TAKEOFF:
@@ -128,6 +129,16 @@ class CommandHandler:
             first = int(p[0]) if math.isfinite(p[0]) and p[0] > 0 else None
             ok, _ = fc.start_mission(first)
             return ACCEPTED if ok else DENIED
+        if cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
+            fc_n = len(fc.mission)
+            if not (math.isfinite(p[0]) and 0 <= p[0] < fc_n):
+                return DENIED
+            if fc.mode == Mode.MISSION and fc.armed:
+                fc.start_mission(int(p[0]))
+            else:
+                fc.mission_index = int(p[0])
+            sitl.mission_changed()
+            return ACCEPTED
         if cmd == mav.MAV_CMD_DO_REPOSITION:
             return self._reposition(p, latlon, frame)
         if cmd == mav.MAV_CMD_DO_CHANGE_SPEED:
