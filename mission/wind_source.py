@@ -111,7 +111,8 @@ class EstimatedWind:
     mode = "estimated"
 
     def __init__(self, sim: Simulation, params: CommonParams, perturb_model: bool = False,
-                 config: EstimatorConfig | None = None, ahrs: AhrsErrorModel | None = None) -> None:
+                 config: EstimatorConfig | None = None, ahrs: AhrsErrorModel | None = None,
+                 imu_decimation: int = 1) -> None:
         if sim.truth_log is None:
             raise ValueError("EstimatedWind needs Simulation(record_truth=True) for the attitude measurement")
         self.sim = sim
@@ -124,6 +125,15 @@ class EstimatedWind:
         self._latency = sim.scenario.sensors.gnss.latency_s
         self._dt_imu = 1.0 / sim.scenario.sensors.imu.rate_hz
         self.upwind = UpwindFilter(params)
+        if imu_decimation < 1:
+            raise ValueError(f"imu_decimation = {imu_decimation}: must be >= 1")
+        #: Feed the estimator the mean of every ``imu_decimation`` consecutive IMU samples
+        #: (time-stamped at the last one): a 2:1 average halves the UKF cost (it runs one
+        #: predict + update per sample) and averages out sensor noise.
+        self.decimation = int(imu_decimation)
+        self._acc_sum = np.zeros(3)
+        self._gyr_sum = np.zeros(3)
+        self._n_sum = 0
 
     def _attitude(self, q_true: np.ndarray) -> np.ndarray:
         # First-order Gauss-Markov attitude error (an autopilot EKF's slowly wandering error).
@@ -151,8 +161,17 @@ class EstimatedWind:
             while ei < len(esc) and esc[ei][0] <= t + 1e-9:
                 est.set_rotor_speeds(esc[ei][0], esc[ei][1])
                 ei += 1
-            est.set_attitude(t, self._attitude(truth[k, T_QUAT]))
-            est.imu(t, acc, gyr)
+            q = self._attitude(truth[k, T_QUAT])
+            self._acc_sum += acc
+            self._gyr_sum += gyr
+            self._n_sum += 1
+            if self._n_sum < self.decimation:
+                continue
+            est.set_attitude(t, q)
+            est.imu(t, self._acc_sum / self._n_sum, self._gyr_sum / self._n_sum)
+            self._acc_sum[:] = 0.0
+            self._gyr_sum[:] = 0.0
+            self._n_sum = 0
             # A fix is delivered `latency` after its time of validity, as a receiver does.
             while self._pending_gnss and self._pending_gnss[0].t + self._latency <= t + 1e-9:
                 g = self._pending_gnss.pop(0)
@@ -160,10 +179,11 @@ class EstimatedWind:
         return self.upwind.make(est.wind_ned, est.wind_cov)
 
 
-def make_wind_source(mode: str, sim: Simulation, params: CommonParams) -> WindSource:
-    """The wind source for ``mode`` (``estimated``, ``oracle`` or ``none``)."""
+def make_wind_source(mode: str, sim: Simulation, params: CommonParams, imu_decimation: int = 1) -> WindSource:
+    """The wind source for ``mode`` (``estimated``, ``oracle`` or ``none``); ``imu_decimation``:
+    IMU samples averaged per estimator step in ``estimated`` mode."""
     if mode == "estimated":
-        return EstimatedWind(sim, params)
+        return EstimatedWind(sim, params, imu_decimation=imu_decimation)
     if mode == "oracle":
         return OracleWind(sim, params)
     if mode == "none":

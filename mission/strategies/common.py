@@ -146,6 +146,23 @@ class PlumeMemory:
         w = np.log1p(np.asarray(self.det_val[i:]) / 0.05)
         return float((P @ n) @ w / w.sum())
 
+    def crosswind_spread(self, t: float, n: np.ndarray, u: np.ndarray, a_up: float, depth_m: float = 10.0) -> float:
+        """Crosswind extent (m along ``n``, 5th to 95th percentile) of the hits of the last
+        ``memory_s`` that lie less than ``depth_m`` downwind of the along-wind coordinate
+        ``a_up`` (m along ``u``): the local plume width there; 0 with fewer than two."""
+        lo = t - self.p.memory_s
+        i = len(self.det_t)
+        while i > 0 and self.det_t[i - 1] >= lo:
+            i -= 1
+        if len(self.det_t) - i < 2:
+            return 0.0
+        P = np.asarray(self.det_pos[i:])
+        P = P[P @ u >= a_up - depth_m]
+        if len(P) < 2:
+            return 0.0
+        c = P @ n
+        return float(np.percentile(c, 95) - np.percentile(c, 5))
+
     def gradient_heading(self) -> float | None:
         """Heading (rad) of the concentration gradient over the recent samples (least squares on
         log(1 + c / 0.05)), or None when it is not determined (too few detections, no spread)."""
@@ -269,9 +286,12 @@ class BaseStrategy:
         self.t_declared = math.nan
         self.confidence = 0.0
         self.t_over = math.nan  # time the descent point was reached
-        self.overshoot_reached = False
-        self.loss_candidates: list[float] = []  # upwind coordinate of each loss's candidate
-        self._loss_counted = False
+        self.verify: Sweep | None = None  # the verification sweep upwind of a candidate, when active
+        self.verify_cand: np.ndarray | None = None
+        self.verified: list[float] = []  # upwind coordinate (m along u) of every verified end
+        self.n_verify_aborted = 0
+        self.verify_spread = 0.0
+        self._verify_armed = True
         self.carrot: np.ndarray | None = None
         self._reset()
 
@@ -283,32 +303,82 @@ class BaseStrategy:
         raise NotImplementedError
 
     # ------------------------------------------------------------------ helpers
-    def _check_declare(self, t: float, pos_ne: np.ndarray, u: np.ndarray) -> bool:
-        """The plume-ended rule (module docstring); sets the declaration when it fires."""
+    def _verify_due(self, t: float, pos_ne: np.ndarray, u: np.ndarray) -> np.ndarray | None:
+        """The candidate to verify now, or None: there is a candidate, the plume has been lost
+        for ``lost_s``, the vehicle is at least ``overshoot_m`` upwind of the candidate, and it
+        has detected something since the last verification (a verification that found
+        nothing needs a re-acquisition before the next one)."""
         m = self.memory
         p = self.p
+        if not self._verify_armed or m.since_detect(t) < p.lost_s:
+            return None
+        cand = m.most_upwind(u)
+        if cand is None or float((pos_ne - cand) @ u) < p.overshoot_m:
+            return None
+        return cand
+
+    def _verify_step(self, obs: Observation, u: np.ndarray, n: np.ndarray, new_det: bool) -> np.ndarray | None:
+        """One tick of the verification sweep; its velocity (north, east) m/s, or None when it
+        is over (aborted by a hit, or complete: then counted and possibly declared)."""
+        p = self.p
+        if new_det:
+            # Plume upwind of the candidate: not the end; the strategy takes over (surge).
+            self.verify = None
+            self.n_verify_aborted += 1
+            return None
+        pos = obs.position_ned[0:2]
+        v = self.verify.velocity(obs.t, pos, u, n, p.speed_m_s)
+        if self.verify.n_legs < 2:
+            return v
+        # Both sides covered without a single hit: one verified end at this candidate.
+        cand = self.verify_cand
+        self.verify = None
+        c_up = float(cand @ u)
+        self.verified.append(c_up)
+        n_same = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
+        if n_same >= self._confirmations_needed():
+            self._declare(obs.t, cand, repeat=n_same >= 2)
+        self._after_verify()
+        return None
+
+    def _confirmations_needed(self) -> int:
+        """Verified ends at the same place needed to declare (``confirmations``)."""
+        return int(self.p.confirmations)
+
+    def _after_verify(self) -> None:
+        """Hook: a verification found nothing (the strategy restarts its lost search)."""
+
+    def _start_verify(self, t: float, pos_ne: np.ndarray, u: np.ndarray, n: np.ndarray, cand: np.ndarray,
+                      sigma_rad: float) -> None:
+        """Start the verification sweep ``verify_offset_m`` upwind of ``cand``: crosswind, about
+        the candidate, half-width ``verify_half_width_m`` widened by the direction uncertainty
+        (the plume near a source follows the instantaneous wind)."""
+        p = self.p
+        # The local plume width: the crosswind spread of the recent hits (a few metres at a
+        # source, wide in the meandering far field, where a narrow sweep would miss a plume
+        # that has only swung aside).
+        spread = self.memory.crosswind_spread(t, n, u, float(cand @ u))
+        self.verify_spread = spread
+        half = max(p.verify_half_width_m, 0.5 * spread + p.verify_margin_m)
+        half = min(half + math.tan(min(sigma_rad, math.radians(45.0))) * p.verify_offset_m, p.verify_max_half_width_m)
+        center = float(cand @ n)
+        c_now = float(pos_ne @ n)
+        direction = 1.0 if center >= c_now else -1.0
+        self.verify = Sweep(t, center, float(cand @ u) + p.verify_offset_m, half, 1.0, half, direction, 0.0)
+        self.verify_cand = cand.copy()
+        self._verify_armed = False
+
+    def _check_timeout_declare(self, t: float, u: np.ndarray) -> bool:
+        """Fallback: lost for ``declare_after_s`` after a verified end at the current candidate
+        (the lost search could not re-acquire the plume downwind of it): declare it."""
+        m = self.memory
+        if self.verify is not None or m.since_detect(t) < self.p.declare_after_s:
+            return False
         cand = m.most_upwind(u)
         if cand is None:
             return False
-        lost = m.since_detect(t)
-        if lost < p.lost_s:
-            self.overshoot_reached = False
-            self._loss_counted = False
-            return False
-        beyond = float((pos_ne - cand) @ u)
-        if beyond >= p.overshoot_m:
-            self.overshoot_reached = True
-        if not self.overshoot_reached:
-            return False
         c_up = float(cand @ u)
-        if not self._loss_counted:
-            self._loss_counted = True
-            n_same = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.loss_candidates)
-            self.loss_candidates.append(c_up)
-            repeat = n_same + 1 >= p.confirmations
-            if repeat:
-                return self._declare(t, cand, repeat=True)
-        if lost >= p.declare_after_s:
+        if any(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified):
             return self._declare(t, cand, repeat=False)
         return False
 
@@ -321,7 +391,9 @@ class BaseStrategy:
         # was confirmed by a second loss at the same place.
         self.confidence = float((1.0 - math.exp(-n / 10.0)) * (1.0 if repeat else 0.8))
         self.diag = {"peak_near": self.memory.peak_near(cand, 5.0),
-                     "median_all": float(np.median(self.memory.all_values)), "repeat": float(repeat)}
+                     "median_all": float(np.median(self.memory.all_values)), "repeat": float(repeat),
+                     "spread": float(self.verify_spread), "n_verified": float(len(self.verified)),
+                     "n_aborted": float(self.n_verify_aborted)}
         return True
 
     # ------------------------------------------------------------------ tick
@@ -335,11 +407,23 @@ class BaseStrategy:
         u = self.axis.update(obs, self.memory, dt)
         n = crosswind(u)
         pos_ne = obs.position_ned[0:2]
-        if self.declared is None and self._check_declare(obs.t, pos_ne, u):
-            pass
+        if new_det:
+            self._verify_armed = True
+        if self.declared is None:
+            self._check_timeout_declare(obs.t, u)
+        v_ne = None
+        if self.declared is None and self.verify is None:
+            cand = self._verify_due(obs.t, pos_ne, u)
+            if cand is not None:
+                sigma = obs.wind.upwind_sigma_rad if obs.wind is not None else math.radians(20.0)
+                self._start_verify(obs.t, pos_ne, u, n, cand, sigma)
+        if self.declared is None and self.verify is not None:
+            v_ne = self._verify_step(obs, u, n, new_det)
+            state = "verify"
         if self.declared is not None:
             return self._descend(obs, u)
-        v_ne, state = self._search(obs, u, n, new_det, dt)
+        if v_ne is None:
+            v_ne, state = self._search(obs, u, n, new_det, dt)
         pos_sp = self._carrot(obs, v_ne, dt, p.altitude_m)
         return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
                         yaw_rad=heading_of(u), state=state,

@@ -47,8 +47,8 @@ class CommonParams:
                                    "[deg]")
     wind_wait_s: float = _p(20.0, 0.0, 300.0, "after take-off, hover up to this long for a usable wind direction [s]")
     lost_s: float = _p(2.0, 0.1, 60.0, "time without detection after which the plume counts as lost [s]")
-    declare_after_s: float = _p(30.0, 0.5, 300.0, "time lost, having searched upwind of the best point, "
-                                 "before declaring [s]")
+    declare_after_s: float = _p(60.0, 0.5, 300.0, "time lost after a verified end at the most-upwind hit "
+                                 "before declaring it anyway [s]")
     overshoot_m: float = _p(4.0, 0.0, 50.0, "how far upwind of the most-upwind detection the vehicle must "
                             "have searched before declaring [m]")
     sensor_tau_s: float = _p(0.5, 0.01, 30.0, "chemical sensor time constant (its datasheet) [s]")
@@ -56,7 +56,15 @@ class CommonParams:
     sensor_lag_s: float = _p(0.3, 0.0, 10.0, "chemical sensor lag: a detection is attributed to the position "
                              "this long before it arrived [s]")
     candidate_min_mg_m3: float = _p(0.2, 0.0, 1e6, "weakest hit that can be the declared source [mg/m^3]")
-    confirmations: int = _p(2, 1, 10, "losses at the same most-upwind hit that confirm the plume end")
+    confirmations: int = _p(2, 1, 10, "verified ends (a crosswind sweep upwind of the most-upwind hit that found "
+                            "nothing) at the same place needed to declare")
+    verify_offset_m: float = _p(3.0, 0.5, 30.0, "the verification sweep flies this far upwind of the most-upwind "
+                                "hit [m]")
+    verify_half_width_m: float = _p(4.0, 0.5, 50.0, "half-width of the verification sweep about the most-upwind hit, "
+                                    "crosswind, before widening by the wind direction uncertainty [m]")
+    verify_margin_m: float = _p(2.0, 0.0, 50.0, "the verification sweep covers half the crosswind spread of the "
+                                "recent hits plus this margin on each side, if wider than verify_half_width_m [m]")
+    verify_max_half_width_m: float = _p(12.0, 0.5, 100.0, "largest verification half-width [m]")
     memory_s: float = _p(20.0, 1.0, 600.0, "time window of detections used for the plume centreline [s]")
     centerline_gain: float = _p(0.4, 0.0, 5.0, "lateral velocity per metre off the estimated centreline [1/s]")
     descend_altitude_m: float = _p(1.5, 0.3, 100.0, "altitude of the final descent over the declared source [m]")
@@ -72,6 +80,8 @@ class AnemotaxisParams(CommonParams):
     speed_m_s: float = _p(2.0, 0.2, 10.0, "ground speed upwind [m/s]")
     declare_after_s: float = _p(8.0, 0.5, 300.0, "time without detection, upwind of the best point, before "
                                 "declaring [s] (no casting: a lost plume is not searched for)")
+    confirmations: int = _p(1, 1, 10, "verified ends at the same place needed to declare (anemotaxis has no "
+                            "lost search to re-acquire the plume between verifications)")
 
 
 @dataclass(frozen=True)
@@ -84,6 +94,8 @@ class SurgeCastParams(CommonParams):
     cast_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest cast half-amplitude [m]")
     cast_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift of the cast anchor [m/s]")
     cast_back_m: float = _p(1.0, -20.0, 50.0, "cast anchor: this far downwind of the last detection [m]")
+    lost_s: float = _p(1.5, 0.1, 60.0, "time without detection after which the plume counts as lost (and, "
+                       "upwind of the most-upwind hit, the verification sweep starts) [s]")
 
 
 @dataclass(frozen=True)
@@ -91,7 +103,7 @@ class ZigzagParams(CommonParams):
     """Dung-beetle zig-zag."""
 
     angle_deg: float = _p(45.0, 5.0, 85.0, "leg angle off the upwind direction [deg]")
-    lost_s: float = _p(4.0, 0.1, 60.0, "time without detection (after edge_s) after which the plume counts as lost "
+    lost_s: float = _p(3.0, 0.1, 60.0, "time without detection (after edge_s) after which the plume counts as lost "
                        "[s]; the legs leave the plume by design, so longer than for surge-cast")
     overshoot_m: float = _p(6.0, 0.0, 50.0, "how far upwind of the most-upwind hit the vehicle must have searched "
                             "before declaring [m]")

@@ -43,6 +43,9 @@ class Zigzag(BaseStrategy):
         self.sweep: Sweep | None = None
         self.mode = "acquire"
 
+    def _after_verify(self) -> None:
+        self.sweep = None  # restart the lost search from the last hit (re-acquire, then verify again)
+
     def _search(self, obs: Observation, u: np.ndarray, n: np.ndarray, new_det: bool, dt: float
                 ) -> tuple[np.ndarray, str]:
         p = self.p
