@@ -205,9 +205,11 @@ class SerialTransport(Transport):
         attrs[4] = attrs[5] = _BAUDS[baud]
         termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
         self.name = f"serial:{device}"
+        self.hung_up = False
 
     def fds(self) -> list[int]:
-        return [self.fd]
+        # After a hang-up the fd stays "readable" forever (EIO): stop polling it instead of spinning.
+        return [] if self.hung_up else [self.fd]
 
     def read(self, fd: int) -> bytes:
         try:
@@ -215,7 +217,8 @@ class SerialTransport(Transport):
         except (BlockingIOError, InterruptedError):
             return b""
         except OSError as e:
-            if e.errno == errno.EIO:  # the other end of a pty closed
+            if e.errno == errno.EIO:  # the device went away (the other end of a pty closed)
+                self.hung_up = True
                 return b""
             raise
         self.stats.rx_bytes += len(data)
