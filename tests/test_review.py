@@ -1,0 +1,362 @@
+"""``windseek review``: real logs in, real ``.rrd`` files out, read back with ``recording.read``.
+
+- A project tlog: ``windseek sitl`` (a subprocess, speed 4) flies a take-off and hover in a
+  plume scenario; a UDP client records every frame it receives into a ``.tlog`` in the
+  format pymavlink/MAVProxy/QGroundControl write ([8-byte big-endian UNIX usec][frame],
+  frames parsed and re-serialized by pymavlink's parser, ``msg.get_msgbuf()``).
+- The same log without IMU and ESC messages, and without ESC messages only.
+- A PX4 ULog. No ULog from a third party could be had from a package (pyulog 0.9.0-1.3.0
+  sdists, px4tools 0.9.6, flightdx 0.1.0, leaf-diag 0.1.4, autopilot-tools 0.7.0 on PyPI and
+  @foxglove/ulog 2.3.2, @lichtblick/ulog 1.0.0 on npm ship none), so the test writes one: the
+  project's lockstep simulator flies, a minimal ULog writer (:func:`write_ulog`, format per
+  PX4's "ULog File Format" page) stores PX4 topics, and pyulog's own ``ULog.write_ulog``
+  re-serializes it, so the file the converter reads was written by pyulog.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from link_support import free_port
+from pyulog import ULog
+
+from recording.read import RrdLog
+from review.convert import review
+from sitl.link.dialect import mavlink as M  # noqa: N812
+from sitl.scenario import parse_scenario
+from sitl.simulation import T_POS, T_QUAT, T_TIME, T_VEL, T_WIND, Simulation
+from windseek.cli import main as cli_main
+
+WIND = (-3.0, 1.0, 0.0)  # air-mass velocity NED of the test scenarios, m/s
+SPEED = 4.0
+
+SCENARIO_TOML = f"""
+name = "review-test"
+duration_s = 600.0
+seed = 3
+[wind]
+velocity_ned = [{WIND[0]}, {WIND[1]}, {WIND[2]}]
+[start]
+position_ned = [0.0, 0.0, 0.0]
+[route]
+takeoff_altitude_m = 3.0
+[plume]
+model = "puff"
+stability = "D"
+puff_rate_hz = 10.0
+max_puffs = 400
+update_rate_hz = 10.0
+warmup_s = 20.0
+sources = [{{ position_ned = [15.0, -5.0, -3.0], rate_g_s = 1.0 }}]
+[plume.sensor]
+time_constant_s = 0.5
+noise_std_mg_m3 = 0.01
+detection_limit_mg_m3 = 0.05
+saturation_mg_m3 = 1000.0
+sample_rate_hz = 10.0
+"""
+
+NO_IMU_ESC = {"HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU", "ESC_STATUS", "ESC_INFO", "RAW_RPM"}
+NO_ESC = {"ESC_STATUS", "ESC_INFO", "RAW_RPM"}
+
+
+# ---------------------------------------------------------------------------------------------- tlog
+def _record_sitl(scenario_file: Path, flight_s: float) -> list[tuple[float, bytes]]:
+    """Fly ``windseek sitl`` (arm, take off, hover) and return the datagrams received (wall time, bytes)."""
+    port = free_port()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
+    sock.bind(("127.0.0.1", port))
+    sock.settimeout(0.2)
+    grams: list[tuple[float, bytes]] = []
+    peer: list[tuple[str, int]] = []
+    stop = threading.Event()
+
+    def rx() -> None:
+        while not stop.is_set():
+            try:
+                data, addr = sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            grams.append((time.time(), data))
+            if not peer:
+                peer.append(addr)
+
+    th = threading.Thread(target=rx, daemon=True)
+    th.start()
+    cmd = [sys.executable, "-m", "windseek.cli", "sitl", str(scenario_file), "--speed", str(SPEED),
+           "--udp", f"127.0.0.1:{port}"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 40.0
+        while not peer and time.monotonic() < t_end and proc.poll() is None:
+            time.sleep(0.05)
+        assert peer, f"no telemetry from windseek sitl: {proc.poll()} {proc.stderr.read() if proc.poll() else ''}"
+        enc = M.MAVLink(None, srcSystem=255, srcComponent=190)
+        time.sleep(1.0 / SPEED + 0.3)  # the first GNSS fix (pre-arm check)
+        for command, p7 in ((M.MAV_CMD_COMPONENT_ARM_DISARM, 0.0), (M.MAV_CMD_NAV_TAKEOFF, math.nan)):
+            p1 = 1.0 if command == M.MAV_CMD_COMPONENT_ARM_DISARM else 0.0
+            sock.sendto(enc.command_long_encode(1, 1, command, 0, p1, 0, 0, 0, 0, 0, p7).pack(enc), peer[0])
+            time.sleep(0.2)
+        time.sleep(flight_s / SPEED)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        stop.set()
+        th.join(timeout=2)
+        sock.close()
+    return grams
+
+
+def _write_tlog(path: Path, grams: list[tuple[float, bytes]], drop: set[str] = frozenset()) -> int:
+    """Parse the datagrams with pymavlink's parser and write a .tlog, leaving out ``drop`` types."""
+    parser = M.MAVLink(None)
+    parser.robust_parsing = True
+    n = 0
+    with path.open("wb") as f:
+        for t, data in grams:
+            for msg in parser.parse_buffer(data) or []:
+                if msg.get_type() in drop or msg.get_type() == "BAD_DATA":
+                    continue
+                f.write(struct.pack(">Q", int(t * 1e6)) + msg.get_msgbuf())
+                n += 1
+    return n
+
+
+@pytest.fixture(scope="module")
+def tlogs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("review")
+    sc = d / "review-test.toml"
+    sc.write_text(SCENARIO_TOML)
+    grams = _record_sitl(sc, flight_s=26.0)
+    out = {}
+    for name, drop in (("full", set()), ("no_imu_esc", NO_IMU_ESC), ("no_esc", NO_ESC)):
+        out[name] = d / f"{name}.tlog"
+        assert _write_tlog(out[name], grams, drop) > 1000
+    return out
+
+
+def test_project_tlog_to_rrd(tlogs: dict[str, Path], capsys: pytest.CaptureFixture) -> None:
+    out = tlogs["full"].with_name("full-out.rrd")
+    assert cli_main(["review", str(tlogs["full"]), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "RMSE vs simulation truth" in text and "wrote" in text
+    # Default output: next to the input.
+    res = review(tlogs["full"])
+    assert res.out == tlogs["full"].with_suffix(".rrd") and res.out.is_file()
+    s = res.summary
+    assert s["autopilot"] == "windseek SITL"
+    assert s["sources"]["imu"] == "HIL_SENSOR" and s["sources"]["rotors"] == "ESC_STATUS"
+    assert s["messages"]["HIL_SENSOR"] > 1000 and s["airborne_s"] > 10.0
+    assert not any("IMU" in m or "ESC" in m for m in s["missing"])
+    assert s["wind_estimated"]
+    r = s["rmse_vs_truth_ms"]
+    assert r["horizontal"] < 1.0, s  # steady 3.2 m/s wind, exact model
+    assert abs(s["wind_mean_ned_ms"][0] - WIND[0]) < 0.7 and abs(s["wind_mean_ned_ms"][1] - WIND[1]) < 0.7
+
+    log = RrdLog(out)
+    paths = log.entity_paths()
+    for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/truth", "wind/east/upper",
+              "chem/value", "rotors/1", "log/events", "log/review"):  # fmt: skip
+        assert e in paths, (e, paths)
+    assert log.blueprint_count >= 1
+    t, p = log.vectors("world/vehicle", "Transform3D:translation")
+    assert len(t) > 100 and p[:, 2].min() < -2.0  # climbed to about 3 m (NED: z up is negative)
+    te, we = log.scalars("wind/north/estimate")
+    tt, wt = log.scalars("wind/north/truth")
+    assert len(te) > 100 and len(tt) > 50
+    late = te > te[0] + 5.0
+    assert abs(np.mean(we[late]) - WIND[0]) < 0.7
+    assert np.allclose(np.median(wt), WIND[0], atol=0.2)
+    tc, c = log.scalars("chem/value")
+    assert len(tc) > 50 and np.all(c >= 0.0)
+    _, w1 = log.scalars("rotors/1")
+    assert 300.0 < np.median(w1[w1 > 100.0]) < 500.0  # hover near 393 rad/s
+
+
+def test_tlog_without_imu_and_esc_still_writes_trajectory(tlogs: dict[str, Path]) -> None:
+    res = review(tlogs["no_imu_esc"])
+    s = res.summary
+    assert not s["wind_estimated"]
+    assert any(m.startswith("no IMU") and "wind not estimated" in m for m in s["missing"]), s["missing"]
+    assert any(m.startswith("no ESC telemetry") for m in s["missing"]), s["missing"]
+    log = RrdLog(res.out)
+    paths = log.temporal_entity_paths()
+    assert "world/vehicle" in paths and "world/trail" in paths and "chem/value" in paths
+    assert "wind/north/estimate" not in paths and "wind/north/truth" in paths
+    t, p = log.vectors("world/vehicle", "Transform3D:translation")
+    assert len(t) > 100 and p[:, 2].min() < -2.0
+    _, texts = log.column("log/review", "TextLog:text")
+    assert any("no IMU" in str(x) for x in texts)
+
+
+def test_tlog_without_esc_runs_on_actuator_outputs(tlogs: dict[str, Path]) -> None:
+    s = review(tlogs["no_esc"]).summary
+    assert s["sources"]["rotor_cmd"] in ("SERVO_OUTPUT_RAW", "ACTUATOR_OUTPUT_STATUS")
+    assert any("estimator ran on rotor speeds implied by the actuator outputs" in m for m in s["missing"])
+    assert s["wind_estimated"]
+    assert s["rmse_vs_truth_ms"]["horizontal"] < 2.5, s  # 10 Hz commands through the motor lag: rougher
+
+
+# ---------------------------------------------------------------------------------------------- ULog
+class UlogWriter:
+    """Minimal ULog writer (PX4 "ULog File Format", version 1), enough for pyulog to read back.
+
+    Header: magic ``ULog\\x01\\x12\\x35``, version byte, start timestamp (uint64 us). Then
+    messages ``<uint16 size><uint8 type><payload>``: ``B`` flag bits (40 bytes, all zero),
+    ``F`` formats ``name:type field;type[n] field;...``, ``I`` info ``<uint8 key len>"type
+    key"<value>``, ``A`` subscriptions ``<uint8 multi_id><uint16 msg_id>name``, ``D`` data
+    ``<uint16 msg_id><fields packed little-endian in format order>``, ``L`` logging
+    ``<uint8 level><uint64 timestamp>text``. Every format starts with ``uint64_t timestamp``.
+    """
+
+    TYPES = {"uint64_t": "Q", "int32_t": "i", "uint32_t": "I", "uint16_t": "H", "uint8_t": "B", "float": "f",
+             "bool": "?", "char": "c", "int8_t": "b"}  # fmt: skip
+
+    def __init__(self, path: Path, t0_us: int = 0) -> None:
+        self.f = path.open("wb")
+        self.f.write(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", t0_us))
+        self._msg("B", bytes(40))
+        self.formats: dict[str, list[tuple[str, int, str]]] = {}
+        self.ids: dict[str, int] = {}
+
+    def _msg(self, kind: str, payload: bytes) -> None:
+        self.f.write(struct.pack("<HB", len(payload), ord(kind)) + payload)
+
+    def info(self, key: str, value: str) -> None:
+        k = f"char[{len(value)}] {key}".encode()
+        self._msg("I", bytes([len(k)]) + k + value.encode())
+
+    def format(self, name: str, fields: list[tuple[str, int, str]]) -> None:
+        """fields: (type, array length or 0, name); nested types by their format name."""
+        self.formats[name] = fields
+        text = "".join(f"{t}[{n}] {f};" if n else f"{t} {f};" for t, n, f in fields)
+        self._msg("F", f"{name}:{text}".encode())
+
+    def subscribe(self, name: str) -> None:
+        self.ids[name] = len(self.ids)
+        self._msg("A", struct.pack("<BH", 0, self.ids[name]) + name.encode())
+
+    def _pack(self, name: str, values: dict) -> bytes:
+        out = b""
+        for t, n, f in self.formats[name]:
+            v = values.get(f, [0] * n if n else 0)
+            items = (list(v) + [0] * n)[:n] if n else [v]  # arrays padded with zeros to their length
+            for x in items:
+                if t in self.TYPES:
+                    out += struct.pack("<" + self.TYPES[t], x)
+                else:
+                    out += self._pack(t, x if isinstance(x, dict) else {})
+        return out
+
+    def data(self, name: str, values: dict) -> None:
+        self._msg("D", struct.pack("<H", self.ids[name]) + self._pack(name, values))
+
+    def log(self, t_us: int, text: str, level: str = "6") -> None:
+        self._msg("L", struct.pack("<BQ", ord(level), t_us) + text.encode())
+
+    def close(self) -> None:
+        self.f.close()
+
+
+PX4_QUAD_X_OUT = (0, 3, 1, 2)  # PX4 output/ESC i drives rotor PX4_QUAD_X[i] = (0, 2, 3, 1): inverse map
+
+
+def _make_ulog(path: Path, seconds: float = 22.0) -> None:
+    """Fly the lockstep simulator (take-off, hover) and store PX4 topics in a ULog."""
+    sc = parse_scenario({"name": "ulog-test", "seed": 5, "wind": {"velocity_ned": list(WIND)},
+                         "route": {"takeoff_altitude_m": 3.0}})  # fmt: skip
+    sim = Simulation(sc, record_truth=True, autostart_route=False)
+    raw = path.with_suffix(".raw.ulg")
+    w = UlogWriter(raw)
+    w.info("sys_name", "PX4")
+    w.info("ver_hw", "WINDSEEK_SIM")
+    w.format("sensor_combined", [
+        ("uint64_t", 0, "timestamp"), ("float", 3, "gyro_rad"), ("uint32_t", 0, "gyro_integral_dt"),
+        ("int32_t", 0, "accelerometer_timestamp_relative"), ("float", 3, "accelerometer_m_s2"),
+        ("uint32_t", 0, "accelerometer_integral_dt"),
+    ])  # fmt: skip
+    w.format("vehicle_attitude", [("uint64_t", 0, "timestamp"), ("float", 4, "q")])
+    w.format("vehicle_local_position", [("uint64_t", 0, "timestamp")] + [("float", 0, c) for c in
+             ("x", "y", "z", "vx", "vy", "vz")] + [("bool", 0, "v_xy_valid")])  # fmt: skip
+    w.format("esc_report", [("uint64_t", 0, "timestamp"), ("int32_t", 0, "esc_rpm"), ("float", 0, "esc_voltage")])
+    w.format("esc_status", [("uint64_t", 0, "timestamp"), ("uint8_t", 0, "esc_count"), ("esc_report", 8, "esc")])
+    w.format("wind", [("uint64_t", 0, "timestamp"), ("float", 0, "windspeed_north"), ("float", 0, "windspeed_east")])
+    w.format("vehicle_land_detected", [("uint64_t", 0, "timestamp"), ("bool", 0, "landed")])
+    for name in ("sensor_combined", "vehicle_attitude", "vehicle_local_position", "esc_status", "wind",
+                 "vehicle_land_detected"):  # fmt: skip
+        w.subscribe(name)
+    rng = np.random.default_rng(1)
+    last_landed = None
+    k_att = 0
+    sim.run(0.5)
+    sim.drain()
+    sim.fc.arm()
+    sim.fc.takeoff(3.0)
+    w.log(int(sim.t * 1e6), "[commander] Takeoff detected")
+    while sim.t < seconds:
+        sim.run_until(sim.t + 0.02)
+        out = sim.drain()
+        truth = np.concatenate(sim.truth_log) if sim.truth_log else np.zeros((0, 28))
+        sim.truth_log.clear()
+        for t, acc, gyr in out["imu"]:
+            w.data("sensor_combined", {"timestamp": int(round(t * 1e6)), "gyro_rad": gyr, "accelerometer_m_s2": acc,
+                                       "gyro_integral_dt": 4000, "accelerometer_integral_dt": 4000})  # fmt: skip
+        for row in truth[::5]:  # 50 Hz attitude and position (truth, as PX4 SITL with ground truth)
+            k_att += 1
+            us = int(round(row[T_TIME] * 1e6))
+            w.data("vehicle_attitude", {"timestamp": us, "q": row[T_QUAT]})
+            x = row[T_POS]
+            v = row[T_VEL]
+            w.data("vehicle_local_position", {"timestamp": us, "x": x[0], "y": x[1], "z": x[2], "vx": v[0],
+                                              "vy": v[1], "vz": v[2], "v_xy_valid": True})  # fmt: skip
+            if k_att % 10 == 0:  # 5 Hz "PX4 wind estimate": truth + noise
+                wn = row[T_WIND][:2] + rng.normal(0.0, 0.2, 2)
+                w.data("wind", {"timestamp": us, "windspeed_north": wn[0], "windspeed_east": wn[1]})
+            landed = sim.fc.landed_state != 2
+            if landed != last_landed:
+                w.data("vehicle_land_detected", {"timestamp": us, "landed": landed})
+                last_landed = landed
+        for t, wr in out["esc"]:
+            reports = [{"timestamp": int(t * 1e6), "esc_rpm": int(round(wr[PX4_QUAD_X_OUT[i]] * 60 / (2 * math.pi))),
+                        "esc_voltage": 16.0} for i in range(4)]  # fmt: skip
+            w.data("esc_status", {"timestamp": int(round(t * 1e6)), "esc_count": 4, "esc": reports})
+    w.close()
+    ULog(str(raw)).write_ulog(str(path))  # re-serialized by pyulog's own writer
+
+
+def test_ulog_to_rrd(tmp_path: Path) -> None:
+    ulg = tmp_path / "flight.ulg"
+    _make_ulog(ulg)
+    u = ULog(str(ulg))
+    assert {d.name for d in u.data_list} >= {"sensor_combined", "vehicle_attitude", "esc_status", "wind"}
+    res = review(ulg, tmp_path / "flight.rrd")
+    s = res.summary
+    assert s["kind"] == "ulog" and s["autopilot"].startswith("PX4")
+    assert s["sources"]["imu"] == "sensor_combined" and s["sources"]["rotors"] == "esc_status"
+    assert s["sources"]["autopilot_wind"] == "wind" and s["airborne_s"] > 10.0
+    assert any(m == "no chemical readings" for m in s["missing"])
+    assert s["wind_estimated"], s
+    assert abs(s["wind_mean_ned_ms"][0] - WIND[0]) < 0.7 and abs(s["wind_mean_ned_ms"][1] - WIND[1]) < 0.7, s
+    assert s["diff_vs_autopilot_ms"]["horizontal"] < 1.2, s
+    assert s["rmse_vs_truth_ms"] is None
+    log = RrdLog(res.out)
+    paths = log.entity_paths()
+    for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/autopilot", "rotors/4", "log/events"):
+        assert e in paths, (e, paths)
+    _, w4 = log.scalars("rotors/4")
+    assert 300.0 < np.median(w4[w4 > 100.0]) < 500.0
