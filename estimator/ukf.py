@@ -195,9 +195,10 @@ class EstimatorConfig:
     scale_sigma0: float = 0.05
     scale_walk_per_sqrt_s: float = 3e-4
     #: The scale is held at its prior mean (zero variance) during the cold start and released
-    #: with ``scale_sigma0`` once the filter has run ``scale_hold_s`` and every wind 1-sigma
-    #: is below ``scale_release_wind_sigma_m_s``: while the wind is still unknown the
-    #: filter would explain the large early innovations with the scale and lock it in.
+    #: with ``scale_sigma0`` once the filter has run ``scale_hold_s`` and the horizontal wind
+    #: 1-sigma is below ``scale_release_wind_sigma_m_s`` (at the latest after 3 hold times):
+    #: while the wind is still unknown the filter would explain the large early innovations
+    #: with the scale and lock it in.
     scale_hold_s: float = 3.0
     scale_release_wind_sigma_m_s: float = 1.0
     #: Transient detector (see WindEstimator._watch_innovation): time constant (s) of the
@@ -207,6 +208,9 @@ class EstimatorConfig:
     fz_ref_tau_s: float = 1.0  # low-pass (s) of the measured body-z specific force the scale multiplies
     transient_threshold: float = 0.5
     transient_hold_s: float = 3.0
+    #: A detector firing longer than this (s) without a break is model error, not a step.
+    transient_max_s: float = 2.0
+    transient_baseline_tau_s: float = 10.0  # slow baseline the low-passed innovation is compared with
     #: While the detector fires, the wind random-walk variance is multiplied by this (the wind
     #: follows a step faster instead of the other states soaking it up).
     transient_wind_q_gain: float = 10.0
@@ -330,6 +334,9 @@ class WindEstimator:
         self._ema_alpha = 1.0
         self._transient_left = 0.0  # s
         self._wind_q_gain = 1.0  # wind process-noise multiplier (> 1 while a transient is detected)
+        self._nu_slow = np.zeros(3)
+        self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
+        self._dt_last = 0.0
         self.transients = 0  # times the transient detector fired
         self._R: np.ndarray | None = None  # attitude DCM body->NED
         self._q_att: np.ndarray | None = None
@@ -476,6 +483,7 @@ class WindEstimator:
         span = t - self.t
         if span > 0.0:
             self._transient_left -= span
+            self._dt_last = span
             self._ema_alpha = min(1.0, span / self.config.transient_tau_s)
         span = min(t - self.t, self.config.max_gap_s)
         if span > 0.0 and self.ready:
@@ -496,9 +504,12 @@ class WindEstimator:
 
     def _maybe_release_scale(self, t: float) -> None:
         cfg = self.config
-        if t - self._t_first < cfg.scale_hold_s:
+        held = t - self._t_first
+        if held < cfg.scale_hold_s:
             return
-        if np.max(np.diag(self.ukf.P)[3:6]) > cfg.scale_release_wind_sigma_m_s**2:
+        # The horizontal wind converges whatever the model error (the vertical may not: the
+        # scale is what fixes it); release anyway after three hold times.
+        if np.max(np.diag(self.ukf.P)[3:5]) > cfg.scale_release_wind_sigma_m_s**2 and held < 3.0 * cfg.scale_hold_s:
             return
         i = self._i_scale
         self.ukf.P[i, :] = 0.0
@@ -552,20 +563,34 @@ class WindEstimator:
         ukf.x = ukf.x + K @ y
 
     def _watch_innovation(self, y: np.ndarray, S: np.ndarray) -> None:
-        """Transient detector: a low-passed normalized accelerometer innovation far from zero
-        means the wind is changing faster than its random walk. While it lasts the wind
+        """Transient detector: a low-passed normalized horizontal accelerometer innovation far
+        from zero means the wind is changing faster than its random walk. While it lasts the wind
         process noise is raised (``transient_wind_q_gain``), and for ``transient_hold_s`` after
         it the force scale is frozen (a wind step must not be explained by a mass change)."""
         cfg = self.config
         a = self._ema_alpha
         nu = y / np.sqrt(np.diag(S))
         self._nu_ema = (1.0 - a) * self._nu_ema + a * nu
-        if np.max(np.abs(self._nu_ema)) > cfg.transient_threshold:
-            if self._transient_left <= 0.0:
+        b = min(1.0, self._dt_last / cfg.transient_baseline_tau_s)
+        self._nu_slow = (1.0 - b) * self._nu_slow + b * nu
+        # Horizontal axes only, against the slow baseline: a persistent innovation (z, or a
+        # steady bias on x and y) is what a force-model error looks like and the scale must
+        # learn from it; a wind step is a fast change on x and y.
+        d = self._nu_ema - self._nu_slow
+        if max(abs(d[0]), abs(d[1])) > cfg.transient_threshold:
+            if self._firing_s == 0.0:
                 self.transients += 1
-            self._transient_left = cfg.transient_hold_s
-            self._wind_q_gain = cfg.transient_wind_q_gain
+            self._firing_s += self._dt_last
+            if self._firing_s <= cfg.transient_max_s:
+                self._transient_left = cfg.transient_hold_s
+                self._wind_q_gain = cfg.transient_wind_q_gain
+            else:
+                # Innovations that stay biased are model error, not a wind step: the scale
+                # must learn from them, so neither freeze it nor keep the wind noise raised.
+                self._transient_left = 0.0
+                self._wind_q_gain = 1.0
         else:
+            self._firing_s = 0.0
             self._wind_q_gain = 1.0
 
     def _guarded(self, op) -> None:
