@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import signal
 import socket
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from link_support import free_port
+from pymavlink import mavutil
 from pyulog import ULog
 
 from recording.read import RrdLog
@@ -56,7 +58,7 @@ stability = "D"
 puff_rate_hz = 10.0
 max_puffs = 400
 update_rate_hz = 10.0
-warmup_s = 20.0
+warmup_s = 10.0
 sources = [{{ position_ned = [15.0, -5.0, -3.0], rate_g_s = 1.0 }}]
 [plume.sensor]
 time_constant_s = 0.5
@@ -122,16 +124,19 @@ def _record_sitl(scenario_file: Path, flight_s: float) -> list[tuple[float, byte
     return grams
 
 
-def _write_tlog(path: Path, grams: list[tuple[float, bytes]], drop: set[str] = frozenset()) -> int:
-    """Parse the datagrams with pymavlink's parser and write a .tlog, leaving out ``drop`` types."""
+def _parse(grams: list[tuple[float, bytes]]) -> list[tuple[float, object]]:
+    """Split the datagrams into messages with pymavlink's parser: (wall time, message)."""
     parser = M.MAVLink(None)
     parser.robust_parsing = True
+    return [(t, m) for t, data in grams for m in parser.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"]
+
+
+def _write_tlog(path: Path, msgs: list[tuple[float, object]], drop: set[str] = frozenset()) -> int:
+    """Write a .tlog ([8-byte big-endian UNIX usec][frame] per message), leaving out ``drop`` types."""
     n = 0
     with path.open("wb") as f:
-        for t, data in grams:
-            for msg in parser.parse_buffer(data) or []:
-                if msg.get_type() in drop or msg.get_type() == "BAD_DATA":
-                    continue
+        for t, msg in msgs:
+            if msg.get_type() not in drop:
                 f.write(struct.pack(">Q", int(t * 1e6)) + msg.get_msgbuf())
                 n += 1
     return n
@@ -142,23 +147,32 @@ def tlogs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("review")
     sc = d / "review-test.toml"
     sc.write_text(SCENARIO_TOML)
-    grams = _record_sitl(sc, flight_s=26.0)
+    msgs = _parse(_record_sitl(sc, flight_s=22.0))
     out = {}
     for name, drop in (("full", set()), ("no_imu_esc", NO_IMU_ESC), ("no_esc", NO_ESC)):
         out[name] = d / f"{name}.tlog"
-        assert _write_tlog(out[name], grams, drop) > 1000
+        assert _write_tlog(out[name], msgs, drop) > 1000
     return out
 
 
+def test_tlog_reads_with_pymavlink(tlogs: dict[str, Path], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The test's .tlog is the format pymavlink's own log reader reads (mavutil.mavlogfile)."""
+    monkeypatch.setenv("MAVLINK20", "1")
+    conn = mavutil.mavlink_connection(str(tlogs["full"]), dialect="common")
+    n, types = 0, set()
+    while (m := conn.recv_match()) is not None:
+        n += 1
+        types.add(m.get_type())
+        assert m._timestamp > 1.0e9  # the record's UNIX time stamp
+    conn.close()
+    assert n > 1000 and {"HEARTBEAT", "HIL_SENSOR", "ATTITUDE_QUATERNION", "NAMED_VALUE_FLOAT"} <= types
+
+
 def test_project_tlog_to_rrd(tlogs: dict[str, Path], capsys: pytest.CaptureFixture) -> None:
-    out = tlogs["full"].with_name("full-out.rrd")
-    assert cli_main(["review", str(tlogs["full"]), "-o", str(out)]) == 0
-    text = capsys.readouterr().out
-    assert "RMSE vs simulation truth" in text and "wrote" in text
-    # Default output: next to the input.
-    res = review(tlogs["full"])
-    assert res.out == tlogs["full"].with_suffix(".rrd") and res.out.is_file()
-    s = res.summary
+    assert cli_main(["review", str(tlogs["full"]), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    out = tlogs["full"].with_suffix(".rrd")  # default output: next to the input
+    assert s["out"] == str(out) and out.is_file()
     assert s["autopilot"] == "windseek SITL"
     assert s["sources"]["imu"] == "HIL_SENSOR" and s["sources"]["rotors"] == "ESC_STATUS"
     assert s["messages"]["HIL_SENSOR"] > 1000 and s["airborne_s"] > 10.0
