@@ -17,6 +17,7 @@ COMMANDS = [
     "windseek.cmd_search",
     "windseek.cmd_estimate",
     "windseek.cmd_sitl",
+    "windseek.cmd_mission",
     "windseek.cmd_review",
 ]
 

@@ -1,0 +1,236 @@
+"""End-to-end: the MAVSDK mission runner against the real ``windseek sitl`` (a subprocess) over UDP.
+
+1. The runner finds the source of ``open-field-low`` (surge-cast, the live UKF on the telemetry),
+   lands at the declared source and disarms; the declaration is scored against the scenario's
+   true source, which only this test knows.
+2. The link is cut mid-search (a UDP relay between the SITL and MAVSDK stops forwarding): the
+   runner says why and gives up after its grace time; the vehicle, watched on a second UDP link
+   by a listener that sends nothing, holds (offboard loss) and then lands (data-link loss,
+   NAV_DLL_ACT) and disarms on the ground near where the link was cut.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import select
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from link_support import free_port
+
+from mission.runners.inprocess import SUCCESS_RADIUS_M
+from mission.runners.mavsdk_runner import MissionConfig, px4_mode_name, run_mission
+from mission.safety import SafetyLimits
+from sitl.link.dialect import mavlink as mav
+from sitl.scenario import load_scenario
+
+pytest.importorskip("mavsdk")
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = "open-field-low"
+SPEED = 5.0
+
+
+class Sitl:
+    """``windseek sitl`` in a subprocess, streaming to the given UDP peers."""
+
+    def __init__(self, peers: list[int], speed: float = SPEED) -> None:
+        self.port = free_port()
+        cmd = [sys.executable, "-m", "windseek.cli", "sitl", SCENARIO, "--speed", str(speed), "--true-wind-hz", "0",
+               "--udp-bind", f"127.0.0.1:{self.port}"]  # fmt: skip
+        for p in peers:
+            cmd += ["--udp", f"127.0.0.1:{p}"]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        line = self.proc.stdout.readline()  # printed once the link is built, just before it serves
+        assert line.startswith("windseek sitl:"), f"SITL did not start: {line!r} {self.proc.stderr.read()}"
+
+    def close(self) -> None:
+        self.proc.terminate()
+        try:
+            _, err = self.proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate(timeout=5)
+        print(err[-2000:])  # shown when a test fails: the SITL's own account (lag, counters)
+
+
+class Observer(threading.Thread):
+    """Listens (never sends: it must not keep the SITL's data link alive) and records the state."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.port = self.sock.getsockname()[1]
+        self.parser = mav.MAVLink(None, 250, 1)
+        self.parser.robust_parsing = True
+        self.t = 0.0  # vehicle time, s
+        self.mode = ""
+        self.armed = False
+        self.pos = np.zeros(3)
+        self.modes: list[tuple[float, str, bool]] = []  # (t, mode, armed) at every change
+        self.track: list[tuple[float, np.ndarray]] = []
+        self.texts: list[tuple[float, str]] = []
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            r, _, _ = select.select([self.sock], [], [], 0.1)
+            if not r:
+                continue
+            data = self.sock.recv(65536)
+            for m in self.parser.parse_buffer(data) or []:
+                mtype = m.get_type()
+                if mtype == "LOCAL_POSITION_NED":
+                    self.t = m.time_boot_ms * 1e-3
+                    self.pos = np.array([m.x, m.y, m.z])
+                    self.track.append((self.t, self.pos))
+                elif mtype == "HEARTBEAT":
+                    mode, armed = px4_mode_name(m.custom_mode), bool(m.base_mode & 128)
+                    if (mode, armed) != (self.mode, self.armed):
+                        self.modes.append((self.t, mode, armed))
+                    self.mode, self.armed = mode, armed
+                elif mtype == "STATUSTEXT":
+                    self.texts.append((self.t, m.text))
+
+    def wait(self, pred, timeout: float, what: str) -> None:
+        end = time.monotonic() + timeout
+        while not pred():
+            assert time.monotonic() < end, f"timed out after {timeout} s waiting for {what}"
+            time.sleep(0.02)
+
+
+class Relay(threading.Thread):
+    """UDP relay SITL <-> MAVSDK; ``cut`` drops everything from then on, both ways."""
+
+    def __init__(self, client_port: int) -> None:
+        super().__init__(daemon=True)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.port = self.sock.getsockname()[1]
+        self.client = ("127.0.0.1", client_port)
+        self.sitl: tuple[str, int] | None = None
+        self.cut = threading.Event()
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            r, _, _ = select.select([self.sock], [], [], 0.1)
+            if not r:
+                continue
+            data, addr = self.sock.recvfrom(65536)
+            if self.cut.is_set():
+                continue
+            if addr == self.client:
+                if self.sitl is not None:
+                    self.sock.sendto(data, self.sitl)
+            else:
+                self.sitl = addr
+                self.sock.sendto(data, self.client)
+
+
+@pytest.fixture
+def observer() -> Iterator[Observer]:
+    obs = Observer()
+    obs.start()
+    yield obs
+    obs.stop.set()
+    obs.join(2)
+    obs.sock.close()
+
+
+def _config(port: int, lines: list[str], **kw: object) -> MissionConfig:
+    return MissionConfig(connect=f"udpin://127.0.0.1:{port}", strategy="surge-cast", speed_hint=SPEED,
+                         say=lines.append, seed=1, **kw)  # fmt: skip
+
+
+@pytest.mark.asyncio
+async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observer) -> None:
+    port = free_port()
+    sitl = Sitl([port, observer.port])
+    lines: list[str] = []
+    wall0 = time.monotonic()
+    try:
+        res = await asyncio.wait_for(run_mission(_config(port, lines)), 80.0)
+    finally:
+        sitl.close()
+    wall = time.monotonic() - wall0
+    print("\n".join(lines))
+    print(res.to_dict())
+    src = np.asarray(load_scenario(SCENARIO).plume["sources"][0]["position_ned"], dtype=float)  # the truth
+    assert res.cause == "declared", res.reasons
+    assert res.reasons == []  # no safety stop, no clamped altitude
+    err = float(np.hypot(*(np.asarray(res.declared_ned[0:2]) - src[0:2])))
+    assert err <= SUCCESS_RADIUS_M, f"declared {res.declared_ned}, true source {src}: {err:.1f} m off"
+    # Landed at the declared source and disarmed (seen by the runner and by the independent listener).
+    assert res.disarmed and res.landed
+    assert float(np.hypot(*(np.asarray(res.final_ned[0:2]) - np.asarray(res.declared_ned[0:2])))) < 1.0
+    observer.wait(lambda: not observer.armed and observer.t > 0, 5.0, "listener sees the disarm")
+    assert observer.pos[2] > -0.2, "not on the ground"
+    assert [m for _, m, _ in observer.modes].count("OFFBOARD") == 1
+    assert "AUTO.LAND" in [m for _, m, _ in observer.modes]
+    # Strategy ticks at its 10 Hz of vehicle time, each sent as an offboard setpoint (MAVSDK also
+    # repeats the last one at 20 Hz wall).
+    assert res.tick_rate_hz >= 9.5
+    assert res.setpoint_rate_hz >= 9.5, res.setpoint_rate_hz
+    assert 0.0 < res.time_s < res.mission_time_s <= 300.0
+    assert res.path_m >= 0.9 * math.hypot(*src[0:2])
+    # The live UKF ran on every IMU sample and saw the wind from the north (air-mass velocity south).
+    acc = res.estimator["accepted"]
+    assert res.estimator["imu_message"] == "HIL_SENSOR" and acc["imu"] > 200 * res.mission_time_s
+    bad = {k: v for k, v in res.estimator["rejected"].items() if not k.endswith("not_ready")}
+    assert sum(bad.values()) < 0.01 * acc["imu"], bad
+    assert wall < 85.0
+
+
+@pytest.mark.asyncio
+async def test_mavsdk_mission_link_cut_vehicle_holds_then_lands(observer: Observer) -> None:
+    mport = free_port()
+    relay = Relay(mport)
+    relay.start()
+    sitl = Sitl([relay.port, observer.port])
+    lines: list[str] = []
+    limits = replace(SafetyLimits(), link_timeout_s=1.5)
+    try:
+        task = asyncio.create_task(run_mission(_config(mport, lines, limits=limits, link_grace_s=2.0)))
+
+        def searching() -> bool:
+            return observer.mode == "OFFBOARD" and observer.modes[-1][0] + 5.0 < observer.t
+
+        await asyncio.to_thread(observer.wait, searching, 40.0, "5 s of offboard search")
+        assert not task.done()
+        t_cut, p_cut = observer.t, observer.pos.copy()
+        relay.cut.set()
+        res = await asyncio.wait_for(task, 15.0)
+        await asyncio.to_thread(observer.wait, lambda: not observer.armed, 30.0, "landing and disarm after the cut")
+    finally:
+        sitl.close()
+        relay.stop.set()
+    print("\n".join(lines))
+    print(observer.modes, observer.texts)
+    # The runner noticed, said why, and left the vehicle to its failsafe.
+    assert res.cause == "link-lost"
+    assert any(r.startswith("ABORT (link-lost): no telemetry for") for r in res.reasons), res.reasons
+    assert any("still down" in r for r in res.reasons), res.reasons
+    # The vehicle: OFFBOARD -> hold (offboard setpoints stopped) -> land (data link lost) -> disarmed.
+    after = [(t, m, a) for t, m, a in observer.modes if t >= t_cut]
+    names = [m for _, m, _ in after]
+    assert names[:2] == ["AUTO.LOITER", "AUTO.LAND"], after
+    t_hold, t_land = after[0][0], after[1][0]
+    assert t_hold - t_cut < 2.0, "did not hold within the offboard-loss timeout"
+    assert t_land - t_hold > 3.0, "did not hold before landing"
+    assert t_land - t_cut <= 10.0 + 0.5, "did not land within COM_DL_LOSS_T of the last heartbeat"
+    assert any(txt.startswith("Data link lost: landing") for _, txt in observer.texts)
+    assert not observer.armed and observer.pos[2] > -0.2
+    # It held and landed where it was: no fly-away after the cut.
+    drift = max(float(np.hypot(*(p[0:2] - p_cut[0:2]))) for t, p in observer.track if t >= t_cut)
+    assert drift < 4.0, f"drifted {drift:.1f} m after the link was cut"
