@@ -168,17 +168,22 @@ def decode_frames(records: list[tuple[float, bytes]], notes: list[str]) -> list[
     for t_log, frame in records:
         try:
             msg = mav.decode(bytearray(frame))
-        except Exception as e:  # unknown id, bad CRC, bad length: counted, never fatal
+            mtype = msg.get_type()
+        except Exception:  # bad CRC, bad length: counted, never fatal
+            msg, mtype = None, "BAD_DATA"
+        if mtype.startswith("UNKNOWN_") or msg is None:
             w = _decode_wind(frame)
             if w is not None:
                 out.append((t_log, w))
                 continue
-            text = str(e)
-            bad["unknown message id" if "unknown MAVLink message ID" in text else "bad frame (CRC or length)"] += 1
-            continue
-        out.append((t_log, msg))
+        if msg is None or mtype == "BAD_DATA":
+            bad["bad (CRC or length)"] += 1
+        elif mtype.startswith("UNKNOWN_"):
+            bad[f"unknown message id {mtype[8:]}"] += 1
+        else:
+            out.append((t_log, msg))
     for what, n in sorted(bad.items()):
-        notes.append(f"{n} {what} frame(s) skipped")
+        notes.append(f"{n} frame(s) skipped: {what}")
     return out
 
 

@@ -374,3 +374,56 @@ def test_ulog_to_rrd(tmp_path: Path) -> None:
         assert e in paths, (e, paths)
     _, w4 = log.scalars("rotors/4")
     assert 300.0 < np.median(w4[w4 > 100.0]) < 500.0
+
+
+# ---------------------------------------------------------------------------------------------- other tlogs
+def test_ardupilot_style_tlog_with_gcs_traffic_and_garbage(tmp_path: Path) -> None:
+    """An ArduPilot-style tlog (ArduPilot's WIND, SCALED_IMU, GLOBAL_POSITION_INT, a ground station's own
+    heartbeats, MAVLink 1 and 2 frames, junk between records, a truncated last record): the reader
+    keeps the vehicle's messages, decodes WIND by hand, and says that wind cannot be estimated."""
+    from pymavlink.dialects.v10 import ardupilotmega as ap1
+    from pymavlink.dialects.v20 import ardupilotmega as ap2
+
+    veh = ap2.MAVLink(None, srcSystem=1, srcComponent=1)
+    veh1 = ap1.MAVLink(None, srcSystem=1, srcComponent=1)
+    gcs = ap2.MAVLink(None, srcSystem=255, srcComponent=190)
+    frames: list[tuple[float, bytes]] = []
+    t_unix = 1.7e9
+    for k in range(200):  # 20 s at 10 Hz
+        ms = 1000 + 100 * k
+        t = t_unix + k * 0.1
+        if k % 10 == 0:
+            frames.append((t, veh.heartbeat_encode(ap2.MAV_TYPE_QUADROTOR, ap2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                                   ap2.MAV_MODE_FLAG_SAFETY_ARMED | 1, 5, 4).pack(veh)))  # fmt: skip
+            frames.append((t, gcs.heartbeat_encode(ap2.MAV_TYPE_GCS, ap2.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(gcs)))
+        lat, lon = int(47.0e7 + k * 10), int(8.0e7)
+        frames.append((t, veh.global_position_int_encode(ms, lat, lon, 500_000, 10_000, 10, 0, 0, 0).pack(veh)))
+        frames.append((t, veh1.attitude_encode(ms, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0).pack(veh1)))  # MAVLink 1
+        frames.append((t, veh.scaled_imu_encode(ms, 0, 0, -1000, 0, 0, 0, 0, 0, 0).pack(veh)))
+        frames.append((t, veh.wind_encode(90.0, 4.0, 0.0).pack(veh)))  # 4 m/s from the east
+    path = tmp_path / "ardupilot.tlog"
+    with path.open("wb") as f:
+        for i, (t, fr) in enumerate(frames):
+            f.write(struct.pack(">Q", int(t * 1e6)) + fr)
+            if i == 100:
+                f.write(b"\x00junk\x17" * 5)
+        f.write(struct.pack(">Q", int(t_unix * 1e6)) + frames[0][1][:6])  # truncated last record
+    res = review(path, tmp_path / "ardupilot.rrd")
+    s = res.summary
+    fd = res.flight
+    assert s["autopilot"] == "ArduPilot"
+    assert s["sources"]["imu"] == "SCALED_IMU" and s["sources"]["attitude"] == "ATTITUDE"
+    assert s["sources"]["position"] == "GLOBAL_POSITION_INT" and s["sources"]["autopilot_wind"] == "WIND"
+    assert s["messages"]["HEARTBEAT"] == 20 and s["messages"]["ATTITUDE"] == 200 and s["messages"]["WIND"] == 200
+    assert any("other than the vehicle" in n for n in s["notes"]) and any("resynchroniz" in n for n in s["notes"])
+    assert any(m.startswith("no ESC telemetry") and "wind not estimated" in m for m in s["missing"]), s["missing"]
+    assert not s["wind_estimated"]
+    assert np.allclose(fd.autopilot_wind.v[:, :2], [0.0, -4.0], atol=1e-5)
+    assert fd.position.v[-1, 0] == pytest.approx(199 * 10 * 1e-7 * math.pi / 180 * 6_371_000.0, rel=1e-6)
+    assert fd.position.v[-1, 2] == pytest.approx(-10.0)
+    assert any("mode LOITER" in x for _, x, _ in fd.texts) and any(x == "armed" for _, x, _ in fd.texts)
+    log = RrdLog(res.out)
+    paths = log.temporal_entity_paths()
+    assert {"world/vehicle", "wind/east/autopilot", "wind/speed/autopilot"} <= set(paths), paths
+    _, we = log.scalars("wind/east/autopilot")
+    assert np.allclose(we, -4.0, atol=1e-5)
