@@ -152,7 +152,7 @@ class Supervisor:
         below_box = p < self.box_lo - tol
         above_box = p > self.box_hi + tol
         ceiling = self.home[2] - self.limits.max_altitude_m - tol
-        if np.any(below_box[0:2]) or np.any(above_box[0:2]) or p[2] < min(self.box_lo[2] - tol, ceiling):
+        if np.any(below_box[0:2]) or np.any(above_box[0:2]) or p[2] < max(self.box_lo[2] - tol, ceiling):
             rel = p - self.home
             return Abort("geofence", f"vehicle outside the geofence box / altitude limit at N {rel[0]:.1f} "
                          f"E {rel[1]:.1f} m, altitude {-rel[2]:.1f} m (relative to home)")  # fmt: skip
