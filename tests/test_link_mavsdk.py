@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from link_support import first, free_port, running, udp_to
+from link_support import autopilot, first, free_port, running, udp_to
 
 from sitl.flight_modes import Mode
 
@@ -35,9 +35,8 @@ async def test_mavsdk_udp_arm_takeoff_offboard_rtl_land() -> None:
     with running([udp_to(port)]) as link:
         sim = link.sim
         async with _gcs() as sdk:
-            await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
-            drone = await sdk.first_autopilot(10.0)
-            assert drone is not None, "MAVSDK saw no autopilot heartbeat"
+            drone = await autopilot(sdk, f"udpin://127.0.0.1:{port}", 10.0)
+            assert drone is not None, f"no autopilot for MAVSDK: {link.endpoint.links[0].transport.stats}, t={sim.t}"
             tel, action, offb = TelemetryAsync(drone), ActionAsync(drone), OffboardAsync(drone)
             await first(tel.subscribe_health_all_ok(), bool, 10.0, "health all ok")
             home = await first(tel.subscribe_home(), lambda h: math.isfinite(h.latitude_deg), 5.0, "home")

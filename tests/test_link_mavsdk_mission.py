@@ -12,7 +12,7 @@ import socket
 
 import numpy as np
 import pytest
-from link_support import first, free_port, running, scenario
+from link_support import autopilot, first, free_port, running, scenario
 
 from sitl.link import TcpServerTransport
 from sitl.rotor_model import hover_rotor_speed
@@ -47,8 +47,7 @@ async def test_mavsdk_tcp_mission_progress_rtl_and_direct_messages() -> None:
         sim = link.sim
         home = sim.scenario.sensors.home
         async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
-            await sdk.add_any_connection(f"tcpout://127.0.0.1:{port}")
-            drone = await sdk.first_autopilot(10.0)
+            drone = await autopilot(sdk, f"tcpout://127.0.0.1:{port}", 10.0)
             assert drone is not None
             tel, action, mission = TelemetryAsync(drone), ActionAsync(drone), MissionAsync(drone)
             direct = MavlinkDirectAsync(drone)

@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from link_support import first, free_port
+from link_support import autopilot, first, free_port
 
 pytest.importorskip("mavsdk")
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk  # noqa: E402
@@ -94,8 +94,7 @@ async def test_cli_serial_pty_mavsdk_arm_takeoff_and_sigint(tmp_path: Path) -> N
         proc = _sitl(tmp_path, "--no-udp", "--serial", f"{dev_sitl}:115200")
         try:
             async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
-                await sdk.add_any_connection(f"serial://{dev_gcs}:115200")
-                drone = await sdk.first_autopilot(15.0)
+                drone = await autopilot(sdk, f"serial://{dev_gcs}:115200", 15.0)
                 assert drone is not None, "no autopilot on the serial link"
                 tel, action = TelemetryAsync(drone), ActionAsync(drone)
                 await first(tel.subscribe_health_all_ok(), bool, 10.0, "health all ok")
