@@ -254,6 +254,8 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
     if skipped:
         fd.notes.append(f"{skipped} byte(s) skipped while resynchronizing on frame starts")
     msgs = decode_frames(records, fd.notes)
+    if not msgs:
+        raise ValueError(f"{path}: no MAVLink frames found (not a telemetry log?)")
     sysid = _vehicle_system(msgs)
     if sysid is None:
         fd.notes.append("no autopilot HEARTBEAT: messages of every system used")

@@ -90,7 +90,10 @@ def read_ulog(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float 
     if motor_order not in MOTOR_ORDERS:
         raise ValueError(f"motor_order = {motor_order!r}: allowed values are auto, {', '.join(MOTOR_ORDERS)}")
     order = MOTOR_ORDERS[motor_order]
-    ulog = ULog(str(path), TOPICS)
+    try:
+        ulog = ULog(str(path), TOPICS)
+    except Exception as e:  # pyulog raises plain exceptions on a bad header
+        raise ValueError(f"{path}: not a readable ULog ({e})") from e
     fd = FlightData(path=path, kind="ulog")
     sys_name = ulog.msg_info_dict.get("sys_name", "")
     ver = ulog.msg_info_dict.get("ver_sw_release") or ulog.msg_info_dict.get("ver_sw", "")
