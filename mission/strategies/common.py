@@ -336,10 +336,16 @@ class BaseStrategy:
         c_up = float(cand @ u)
         self.verified.append(c_up)
         n_same = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
-        if n_same >= self._confirmations_needed():
+        if n_same >= self._confirmations_needed() and self._supported(cand):
             self._declare(obs.t, cand, repeat=n_same >= 2)
         self._after_verify()
         return None
+
+    def _supported(self, cand: np.ndarray) -> bool:
+        """Enough hits within 5 m of ``cand`` (``min_hits_near``): the plume just downwind of a
+        source is continuous, so the surges and re-acquisitions there collect many hits; a
+        far-field "end" (a gap, a meander, the plume above or below the sensor) has few."""
+        return self.memory.n_near(cand, 5.0) >= self.p.min_hits_near
 
     def _confirmations_needed(self) -> int:
         """Verified ends at the same place needed to declare (``confirmations``)."""
@@ -378,7 +384,7 @@ class BaseStrategy:
         if cand is None:
             return False
         c_up = float(cand @ u)
-        if any(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified):
+        if any(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified) and self._supported(cand):
             return self._declare(t, cand, repeat=False)
         return False
 

@@ -64,6 +64,8 @@ class CommonParams:
                                     "crosswind, before widening by the wind direction uncertainty [m]")
     verify_margin_m: float = _p(2.0, 0.0, 50.0, "the verification sweep covers half the crosswind spread of the "
                                 "recent hits plus this margin on each side, if wider than verify_half_width_m [m]")
+    min_hits_near: int = _p(12, 0, 1000, "hits within 5 m of the most-upwind hit needed before it can be declared "
+                            "(the plume just downwind of a source is continuous)")
     verify_max_half_width_m: float = _p(12.0, 0.5, 100.0, "largest verification half-width [m]")
     memory_s: float = _p(20.0, 1.0, 600.0, "time window of detections used for the plume centreline [s]")
     centerline_gain: float = _p(0.4, 0.0, 5.0, "lateral velocity per metre off the estimated centreline [1/s]")
