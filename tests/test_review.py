@@ -110,7 +110,11 @@ def _record_sitl(scenario_file: Path, flight_s: float) -> list[tuple[float, byte
             p1 = 1.0 if command == M.MAV_CMD_COMPONENT_ARM_DISARM else 0.0
             sock.sendto(enc.command_long_encode(1, 1, command, 0, p1, 0, 0, 0, 0, 0, p7).pack(enc), peer[0])
             time.sleep(0.2)
-        time.sleep(flight_s / SPEED)
+        # Until the simulation clock (time stamps of the newest datagram) passes flight_s: a loaded
+        # machine slows the SITL down (it re-anchors its clock), so wall time alone is not enough.
+        t_end = time.monotonic() + 4.0 * flight_s / SPEED + 10.0
+        while time.monotonic() < t_end and _sim_time(grams[-1][1]) < flight_s:
+            time.sleep(0.2)
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -122,6 +126,17 @@ def _record_sitl(scenario_file: Path, flight_s: float) -> list[tuple[float, byte
         th.join(timeout=2)
         sock.close()
     return grams
+
+
+def _sim_time(datagram: bytes) -> float:
+    """Newest boot-clock time stamp [s] in one datagram (0 if none)."""
+    t = 0.0
+    for m in M.MAVLink(None).parse_buffer(datagram) or []:
+        if hasattr(m, "time_usec") and m.time_usec < 1e13:
+            t = max(t, m.time_usec * 1e-6)
+        elif hasattr(m, "time_boot_ms"):
+            t = max(t, m.time_boot_ms * 1e-3)
+    return t
 
 
 def _parse(grams: list[tuple[float, bytes]]) -> list[tuple[float, object]]:
