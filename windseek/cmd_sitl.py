@@ -43,6 +43,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="rate of the simulation-only TRUEWN/TRUEWE/TRUEWD values (0 = off)")
     p.add_argument("--hil-decimation", type=int, default=1, metavar="N",
                    help="send HIL_SENSOR for every N-th IMU sample (default 1: the IMU rate)")
+    # ---- wire attachments (sitl.link.wire): logs, forwarding, truth summary
+    g = p.add_argument_group("logs, forwarding and truth (see sitl/link/wire.py)")
+    g.add_argument("--tlog", metavar="PATH", help="write every MAVLink frame sent and received to a .tlog "
+                   "(8-byte big-endian wall-clock UNIX time in us + frame)")
+    g.add_argument("--rrd", metavar="PATH", help="write a Rerun recording: the simulation's truth plus the "
+                   "WIND_COV estimates, mission status and declared source that arrive on the wire")
+    g.add_argument("--rrd-strategy", metavar="NAME", default=None, help="strategy name stored in the recording")
+    g.add_argument("--geofence", metavar="N,E,D,N,E,D", default=None,
+                   help="geofence box corners (m, NED) drawn in the recording (the mission's box)")
+    g.add_argument("--forward", action="store_true", help="forward frames not addressed to the autopilot to the "
+                   "other links and peers (PX4 MAV_X_FORWARD), e.g. an estimator's WIND_COV to the mission")
+    g.add_argument("--exit-summary", metavar="PATH", help="write a JSON file at shutdown with truth-based figures: "
+                   "wind RMSE of the received WIND_COV, true and declared source, path length, final state")
     p.set_defaults(func=run)
 
 
@@ -74,8 +87,43 @@ def build(args: argparse.Namespace) -> SitlLink:
         raise
 
 
+def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
+    """The optional --tlog / --forward / --rrd / --exit-summary attachments; returns those to close."""
+    from sitl.link.wire import Forwarder, TlogWriter, TruthSummary, WireRecorder
+
+    out: list = []
+    if getattr(args, "tlog", None):
+        out.append(TlogWriter(args.tlog).attach(link))
+    if getattr(args, "forward", False):
+        Forwarder(link)
+    if getattr(args, "rrd", None):
+        fence = None
+        if args.geofence:
+            v = [float(x) for x in args.geofence.split(",")]
+            if len(v) != 6:
+                raise ValueError(f"--geofence {args.geofence!r}: expected six numbers N,E,D,N,E,D")
+            fence = (v[:3], v[3:])
+        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=fence))
+    if getattr(args, "exit_summary", None):
+        out.append(TruthSummary(link, args.exit_summary))
+    return out
+
+
+def _close_wire(parts: list) -> None:
+    for part in parts:
+        try:
+            part.close()
+        except Exception as e:  # noqa: BLE001 - one failing log must not lose the others
+            print(f"windseek sitl: could not finish {type(part).__name__}: {e}", file=sys.stderr, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     link = build(args)
+    try:
+        wire = _attach_wire(link, args)
+    except Exception:
+        link.endpoint.close()
+        raise
 
     def _stop(signum: int, frame: object) -> None:
         link._stop.set()
@@ -87,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         link.serve()
     finally:
         link.endpoint.close()
+        _close_wire(wire)
         for s, h in old.items():
             signal.signal(s, h)
     c = link.counters

@@ -35,6 +35,8 @@ class Link:
         self.parser = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
         self.parser.robust_parsing = True
         self.peers_seen: set[tuple[int, int]] = set()
+        #: Sender address of the datagram being parsed (UDP; None on byte streams): for forwarding.
+        self.rx_source: tuple[str, int] | None = None
 
     @property
     def name(self) -> str:
@@ -115,6 +117,7 @@ class Endpoint:
             data = lk.transport.read(fd)
             if isinstance(data, list):  # datagrams
                 for dgram in data:
+                    lk.rx_source = getattr(dgram, "addr", None)
                     handled += self.feed(lk, dgram)
                     self._end_of_datagram(lk)
             elif data:

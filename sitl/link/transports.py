@@ -101,12 +101,18 @@ class UdpTransport(Transport):
                 continue
             if addr not in self.peers:
                 self.peers.append(addr)
-            chunks.append(data)
+            chunks.append(Datagram(data, addr))
             self.stats.rx_bytes += len(data)
         return chunks
 
     def write(self, data: bytes) -> None:
+        self.write_except(data, None)
+
+    def write_except(self, data: bytes, skip: tuple[str, int] | None) -> None:
+        """Send to every peer but ``skip`` (the sender of a forwarded frame)."""
         for peer in self.peers:
+            if peer == skip:
+                continue
             try:
                 self.sock.sendto(data, peer)
                 self.stats.tx_bytes += len(data)
@@ -115,6 +121,17 @@ class UdpTransport(Transport):
 
     def close(self) -> None:
         self.sock.close()
+
+
+class Datagram(bytes):
+    """A received UDP datagram that remembers its sender (``addr``), for message forwarding."""
+
+    addr: tuple[str, int] | None
+
+    def __new__(cls, data: bytes, addr: tuple[str, int] | None = None) -> Datagram:
+        obj = super().__new__(cls, data)
+        obj.addr = addr
+        return obj
 
 
 class TcpServerTransport(Transport):
