@@ -19,6 +19,8 @@ COMMANDS = [
     "windseek.cmd_sitl",
     "windseek.cmd_mission",
     "windseek.cmd_review",
+    # issue 7: the live estimator process and the three-process demo
+    "windseek.cmd_estimator",
 ]
 
 
