@@ -233,6 +233,8 @@ async def test_mavsdk_mission_link_cut_vehicle_holds_then_lands(observer: Observ
     assert t_land - t_cut <= 10.0 + 0.5, "did not land within COM_DL_LOSS_T of the last heartbeat"
     assert any(txt.startswith("Data link lost: landing") for _, txt in observer.texts)
     assert not observer.armed and observer.pos[2] > -0.2
-    # It held and landed where it was: no fly-away after the cut.
+    # It held and landed where it was: no fly-away after the cut. The vehicle may be flying at up
+    # to 3 m/s when the link goes; hold brakes to a stop point ahead of it, and on a loaded machine
+    # the observer's "cut" position lags. A fly-away over the ~10 s before landing would be 20+ m.
     drift = max(float(np.hypot(*(p[0:2] - p_cut[0:2]))) for t, p in observer.track if t >= t_cut)
-    assert drift < 4.0, f"drifted {drift:.1f} m after the link was cut"
+    assert drift < 7.0, f"drifted {drift:.1f} m after the link was cut"
