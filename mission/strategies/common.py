@@ -366,6 +366,12 @@ class BaseStrategy:
         spread = self.memory.crosswind_spread(t, n, u, float(cand @ u))
         self.verify_spread = spread
         half = max(p.verify_half_width_m, 0.5 * spread + p.verify_margin_m)
+        # Each earlier verified end at the same place widens the next sweep (a moth casts wider
+        # and wider): at a source nothing is found however wide; a far-field plume that has
+        # swung further aside than the first sweep reached is found by a later one.
+        c_up = float(cand @ u)
+        n_before = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
+        half *= p.verify_growth**n_before
         half = min(half + math.tan(min(sigma_rad, math.radians(45.0))) * p.verify_offset_m, p.verify_max_half_width_m)
         center = float(cand @ n)
         c_now = float(pos_ne @ n)

@@ -64,6 +64,7 @@ class CommonParams:
                                     "crosswind, before widening by the wind direction uncertainty [m]")
     verify_margin_m: float = _p(2.0, 0.0, 50.0, "the verification sweep covers half the crosswind spread of the "
                                 "recent hits plus this margin on each side, if wider than verify_half_width_m [m]")
+    verify_growth: float = _p(1.0, 1.0, 5.0, "half-width factor of each further verification at the same place")
     min_hits_near: int = _p(12, 0, 1000, "hits within 5 m of the most-upwind hit needed before it can be declared "
                             "(the plume just downwind of a source is continuous)")
     verify_max_half_width_m: float = _p(12.0, 0.5, 100.0, "largest verification half-width [m]")
@@ -116,6 +117,8 @@ class ZigzagParams(CommonParams):
     lost_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest lost sweep half-width [m]")
     lost_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift of the lost sweep anchor [m/s]")
     lost_back_m: float = _p(1.0, -20.0, 50.0, "lost sweep anchor: this far downwind of the last detection [m]")
+    verify_growth: float = _p(1.6, 1.0, 5.0, "half-width factor of each further verification at the same place "
+                              "(the legs leave the plume by design: a far-field end needs a wider look)")
 
 
 #: Fields where NaN means "not set" (documented per field).
