@@ -1,5 +1,5 @@
 # Two commands do all the set-up from a fresh clone:
-#   make demo   creates .venv, installs windseek, runs the main job
+#   make demo   creates .venv, installs windseek, runs SITL + estimator + search mission (windseek demo)
 #   make test   creates .venv, installs windseek with its test extras, runs the test suite
 PYTHON ?= python3
 VENV ?= .venv
@@ -14,8 +14,9 @@ $(BIN)/.installed: pyproject.toml
 
 venv: $(BIN)/.installed
 
+# SITL + wind estimator + MAVSDK search mission as three MAVLink processes; logs/<time>-*.rrd/.tlog/.json
 demo: venv
-	$(BIN)/windseek sim paper-s2
+	$(BIN)/windseek demo
 
 test: venv
 	$(BIN)/python -m pytest -q

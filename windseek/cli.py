@@ -21,6 +21,7 @@ COMMANDS = [
     "windseek.cmd_review",
     # issue 7: the live estimator process and the three-process demo
     "windseek.cmd_estimator",
+    "windseek.cmd_demo",
 ]
 
 

@@ -39,6 +39,7 @@ from sitl.link.wire_names import ESTIMATOR_COMPONENT
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
+LANDED_ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
 #: Message ids and the rate (Hz) asked for when an input is missing at start.
 WANTED = {"imu": (("HIL_SENSOR", "HIGHRES_IMU"), 105, 100.0),
           "attitude": (("ATTITUDE_QUATERNION", "ATTITUDE"), 31, 50.0),
@@ -93,6 +94,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="average N consecutive IMU samples per filter step (cost / N; default 1)")
     p.add_argument("--request-rates", choices=("missing", "always", "never"), default="missing",
                    help="SET_MESSAGE_INTERVAL for the inputs at start: those not streaming (default), all, none")
+    p.add_argument("--ground-gate", action=argparse.BooleanOptionalAction, default=True,
+                   help="pause the filter while the autopilot reports the vehicle on the ground (EXTENDED_SYS_STATE) "
+                   "and restart it at take-off (default on)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
     p.add_argument("--link-timeout", type=float, default=10.0, metavar="S",
@@ -120,8 +124,15 @@ class LiveEstimator:
         if not (math.isfinite(args.rate) and args.rate > 0):
             raise ValueError(f"--rate {args.rate}: must be > 0")
         self.args = args
-        self.est = WindEstimator(load_vehicle(args.vehicle))
-        self.adapter = MavlinkWindAdapter(self.est, PX4_QUAD_X if args.esc_order == "px4" else SITL_ORDER)
+        self._vehicle = load_vehicle(args.vehicle)
+        self._make = lambda: WindEstimator(self._vehicle)
+        self._adapter = lambda est: MavlinkWindAdapter(est, PX4_QUAD_X if args.esc_order == "px4" else SITL_ORDER)
+        warm_up(self._make())
+        self.est = self._make()
+        self.adapter = self._adapter(self.est)
+        #: MAV_LANDED_STATE from EXTENDED_SYS_STATE (None: not reported, the filter always runs).
+        self.landed_state: int | None = None
+        self.restarts = 0
         self.imu_type: str | None = None
         self.seen: dict[str, int] = {}
         self.pending_vel: list[Any] = []
@@ -134,10 +145,35 @@ class LiveEstimator:
         self.reason = ""
 
     # ------------------------------------------------------------------ input
+    def on_ground(self) -> bool:
+        """True while the autopilot reports the vehicle on the ground (and --ground-gate is on)."""
+        return self.args.ground_gate and self.landed_state == LANDED_ON_GROUND
+
+    def _restart(self) -> None:
+        """A fresh filter at take-off: on the ground the ground reaction is not in the force model,
+        and a filter that ran there starts the flight with a badly wrong vertical wind."""
+        sources = dict(self.adapter.sources)
+        self.est = self._make()
+        self.adapter = self._adapter(self.est)
+        self.adapter.sources.update(sources)
+        self.pending_vel.clear()
+        self.imu_sum.clear()
+        self.restarts += 1
+
     def handle(self, msg: Any) -> None:
         mtype = msg.get_type()
         self.seen[mtype] = self.seen.get(mtype, 0) + 1
+        if mtype == "EXTENDED_SYS_STATE":
+            was_ground = self.on_ground()
+            self.landed_state = int(msg.landed_state)
+            if was_ground and not self.on_ground() and self.landed_state != 0:
+                self._restart()
+            return
         if mtype not in INPUTS:
+            return
+        if self.on_ground():
+            if mtype == self.imu_type:
+                self.t = msg.time_usec * 1e-6
             return
         if self.imu_type is None:
             return  # the inputs are chosen after the start window (see choose_inputs)
@@ -190,7 +226,7 @@ class LiveEstimator:
 
     # ------------------------------------------------------------------ output
     def due(self) -> bool:
-        if self.est.t is None or not math.isfinite(self.t) or self.t < self.next_pub:
+        if self.on_ground() or self.est.t is None or not math.isfinite(self.t) or self.t < self.next_pub:
             return False
         self.next_pub = self.t + 1.0 / self.args.rate
         return True
@@ -208,11 +244,13 @@ class LiveEstimator:
              "wind_ned_m_s": [round(float(v), 3) for v in w], "sigma_ned_m_s": [round(float(v), 3) for v in sig],
              "speed_m_s": round(speed, 3), "from_deg": round(from_deg, 1), "wind_cov_published": self.published,
              "imu_message": self.imu_type, "inputs": dict(self.adapter.sources), "accepted": dict(e.accepted),
-             "rejected": dict(e.rejected), "stop_reason": self.reason}  # fmt: skip
+             "rejected": dict(e.rejected), "restarts": self.restarts, "stop_reason": self.reason}  # fmt: skip
         return _json_safe(d)
 
     def line(self) -> str:
         e = self.est
+        if self.on_ground():
+            return f"t {self.t:7.1f} s  on the ground: filter paused  WIND_COV sent {self.published}"
         if e.t is None:
             return f"waiting for inputs (seen: {', '.join(sorted(k for k in self.seen if k in INPUTS)) or 'none'})"
         w = e.wind_ned
@@ -223,6 +261,21 @@ class LiveEstimator:
         return (f"t {self.t:7.1f} s  wind N {w[0]:+5.2f} E {w[1]:+5.2f} D {w[2]:+5.2f} m/s "
                 f"(+-{sig[0]:.2f} {sig[1]:.2f} {sig[2]:.2f}) = {speed:4.1f} m/s from {from_deg:5.1f} deg  "
                 f"WIND_COV sent {self.published}")  # fmt: skip
+
+
+def warm_up(est: Any) -> None:
+    """Run a throw-away filter for a few hovering samples, so the numba kernels are compiled (or loaded
+    from the cache) before the first real sample: on a fresh machine that takes 15-25 s, which would
+    otherwise stall the filter at take-off."""
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    est.set_attitude(0.0, q)
+    est.set_rotor_speeds(0.0, np.full(4, 393.0))
+    for i in range(1, 40):
+        t = 0.004 * i
+        est.imu(t, np.array([0.0, 0.0, -9.81]), np.zeros(3))
+        if i % 10 == 0:
+            est.set_attitude(t, q)
+            est.gnss_velocity(t, np.zeros(3))
 
 
 def _json_safe(o: Any) -> Any:

@@ -56,5 +56,15 @@ def state_fields(state: str) -> tuple[str, str]:
     return "STATUSTEXT", json.dumps({"severity": int(mav.MAV_SEVERITY_INFO), "text": text, "id": 0, "chunk_seq": 0})
 
 
-__all__ = ["ESTIMATOR_COMPONENT", "MISSION_COMPONENT", "SRC_CONF", "SRC_NAMES", "STATE_PREFIX",
+async def publish(direct: object, pairs: list[tuple[str, str]]) -> None:
+    """Send (message_name, fields_json) pairs through a MAVSDK ``MavlinkDirectAsync`` plugin, e.g.
+    ``await publish(direct, [state_fields("surge")])`` on a state change and
+    ``await publish(direct, declaration_fields(t, ned, conf))`` once at the declaration."""
+    from mavsdk.plugins.mavlink_direct import MavlinkMessage
+
+    for name, fields in pairs:
+        await direct.send_message(MavlinkMessage(message_name=name, fields_json=fields))
+
+
+__all__ = ["publish", "ESTIMATOR_COMPONENT", "MISSION_COMPONENT", "SRC_CONF", "SRC_NAMES", "STATE_PREFIX",
            "declaration_fields", "declaration_messages", "state_fields", "statustext_message"]  # fmt: skip
