@@ -42,7 +42,7 @@ import numpy as np
 
 from sitl.link.endpoint import COMPONENT_ID, SYSTEM_ID, Link
 from sitl.link.transports import UdpTransport
-from sitl.link.wire_names import SRC_CONF, SRC_NAMES, STATE_PREFIX
+from sitl.link.wire_names import MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
 
 if TYPE_CHECKING:
     from recording.rerun_log import RunRecorder
@@ -315,7 +315,8 @@ class WireRecorder:
             if msg.get_srcComponent() == COMPONENT_ID and msg.get_srcSystem() == SYSTEM_ID:
                 return
             text = str(msg.text).rstrip("\x00")
-            channel = "mission" if text.startswith(STATE_PREFIX) else "wire"
+            mission = text.startswith(STATE_PREFIX) or msg.get_srcComponent() == MISSION_COMPONENT
+            channel = "mission" if mission else "wire"
             level = "WARN" if msg.severity <= 4 else "INFO"
             self.rec.text(sim.t, f"[{msg.get_srcSystem()}:{msg.get_srcComponent()}] {text}", level, channel)
         elif mtype == "NAMED_VALUE_FLOAT":
