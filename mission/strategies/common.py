@@ -47,6 +47,7 @@ class PlumeMemory:
         self.det_t: list[float] = []
         self.det_pos: list[np.ndarray] = []
         self.det_val: list[float] = []
+        self.det_eligible: list[bool] = []  # a candidate whatever its value (it interrupted a verification)
         self.samples: deque[tuple[float, np.ndarray, float]] = deque()
         self.last_detect_t = -math.inf
         self.first_detect_t = math.nan
@@ -94,6 +95,7 @@ class PlumeMemory:
         self.det_t.append(obs.t)
         self.det_pos.append(pos)
         self.det_val.append(obs.chem_mg_m3)
+        self.det_eligible.append(False)
         self.hit_rate_at_last = self.hit_rate
         if self.n_detect == 0:
             self.first_detect_t = obs.t
@@ -110,7 +112,7 @@ class PlumeMemory:
         if not self.det_pos:
             return None
         P = np.asarray(self.det_pos)
-        strong = np.asarray(self.det_val) >= self.p.candidate_min_mg_m3
+        strong = (np.asarray(self.det_val) >= self.p.candidate_min_mg_m3) | np.asarray(self.det_eligible)
         if not strong.any():
             return None
         P = P[strong]
@@ -322,7 +324,10 @@ class BaseStrategy:
         is over (aborted by a hit, or complete: then counted and possibly declared)."""
         p = self.p
         if new_det:
-            # Plume upwind of the candidate: not the end; the strategy takes over (surge).
+            # Plume upwind of the candidate: not the end; the strategy takes over (surge). This
+            # hit is a candidate however weak (else the next verification would start from the
+            # same place and be interrupted by the same weak plume edge for ever).
+            self.memory.det_eligible[-1] = True
             self.verify = None
             self.n_verify_aborted += 1
             return None

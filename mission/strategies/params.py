@@ -55,7 +55,8 @@ class CommonParams:
     sensor_noise_mg_m3: float = _p(0.01, 0.0, 100.0, "chemical sensor noise, 1-sigma [mg/m^3]")
     sensor_lag_s: float = _p(0.3, 0.0, 10.0, "chemical sensor lag: a detection is attributed to the position "
                              "this long before it arrived [s]")
-    candidate_min_mg_m3: float = _p(0.2, 0.0, 1e6, "weakest hit that can be the declared source [mg/m^3]")
+    candidate_min_mg_m3: float = _p(0.2, 0.0, 1e6, "weakest hit that can be the declared source [mg/m^3] "
+                                    "(a hit that interrupts a verification sweep always can)")
     confirmations: int = _p(2, 1, 10, "verified ends (a crosswind sweep upwind of the most-upwind hit that found "
                             "nothing) at the same place needed to declare")
     verify_offset_m: float = _p(3.0, 0.5, 30.0, "the verification sweep flies this far upwind of the most-upwind "
