@@ -52,6 +52,7 @@ def main() -> None:
     ap.add_argument("--extra-winds", default="estimated,oracle")
     ap.add_argument("--extra-trials", type=int, default=20)
     ap.add_argument("--title-note", default="", help="text added to the table caption")
+    ap.add_argument("--notes", default=None, help="markdown file appended below the table (findings, missing cells)")
     args = ap.parse_args()
     levels = [lv for lv in LEVELS if lv[0] in args.levels.split(",")]
     cells = [(strat, wind, level, scenario, args.estimated_trials if wind == "estimated" else args.trials)
@@ -109,6 +110,8 @@ def main() -> None:
             f"{100 * s['success_rate']:.0f} | "
             f"{_f(s['time_median_s'])} | {_f(s['time_p90_s'])} | {_f(s['path_ratio_median'], 2)} | {fails} |"
         )
+    if args.notes:
+        lines += ["", Path(args.notes).read_text().strip()]
     lines += ["", END]
     table = "\n".join(lines)
     print(table)
