@@ -9,15 +9,15 @@ Conventions (the whole project's):
 - Directions are FROM-directions in degrees, 0 = from north, 90 = from east.
 
 State x: [u, v, w] ground velocity in body axes (FRD, m/s), [W_n, W_e, W_d] wind (NED,
-m/s), by default a force scale s (dimensionless, 1 = nominal), optionally [b_x, b_y, b_z]
-accelerometer bias (FRD, m/s^2).
+m/s), a force scale s (dimensionless, 1 = nominal; ``uncalibrated`` preset), accelerometer
+biases on the body axes in ``bias_axes`` (FRD, m/s^2; ``calibrated`` preset: b_z only).
 Inputs (held between their samples): attitude q, body rates (gyro), rotor speeds.
 Process model (Eq. 49, 53), per step dt:
     v_air  = v_body - R^T W
     F      = rotor_wrench(v_air, rates, Omega, 0, p)[0:3]           (rotor force, FRD, N)
     f      = [s F_x / m, s F_y / m, F_z / m + (s - 1) fz_ref]        (specific force, FRD)
     v_body += dt (f + R^T [0, 0, g] - rates x v_body)
-    W_n, W_e, s, b : random walks;  W_d : Ornstein-Uhlenbeck (mean-reverting to 0)
+    W_n, W_e, s, b : random walks;  W_d : Ornstein-Uhlenbeck (mean-reverting to 0) or random walk
 Measurements, each at its own rate (asynchronous updates):
     accelerometer   h = f(v_air) + b     (FRD specific force, every IMU sample)
     GNSS velocity   h = R v_body         (NED, at the sample's time of validity, see below)
@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
@@ -152,16 +152,18 @@ def _accel_batch(
     w_rot: np.ndarray,
     p: np.ndarray,
     i_scale: int,
-    i_bias: int,
+    bias_idx: np.ndarray,
     fz_ref: float,
 ) -> np.ndarray:
-    """Accelerometer measurement model at every sigma point: scale * f(v_air) (+ bias)."""
+    """Accelerometer measurement model at every sigma point: f(v_air) (with the force scale)
+    + bias; ``bias_idx[i]`` is the state index of the body-axis-i bias, -1 = no bias state."""
     n = sigmas.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
         f = _specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
         for i in range(3):
-            out[k, i] = f[i] + (sigmas[k, i_bias + i] if i_bias >= 0 else 0.0)
+            j = bias_idx[i]
+            out[k, i] = f[i] + (sigmas[k, j] if j >= 0 else 0.0)
     return out
 
 
@@ -171,6 +173,19 @@ class EstimatorConfig:
 
     The accelerometer noise includes the model error the filter must tolerate (ESC noise on
     the thrust, rotor speeds held between ESC samples), hence larger than the sensor's own.
+
+    Two presets; pick by whether the vehicle was identified (see :data:`PRESETS`):
+
+    - :meth:`uncalibrated` (= ``EstimatorConfig()``, the default everywhere a preset is not
+      chosen, including the MAVLink companion ``windseek estimator`` and the mission runners):
+      the force model is only known to a few % (mass, thrust coefficients), so a force-scale
+      state takes the constant part of the force error and the vertical wind is mean-reverting
+      (a steady updraft is read partly as model error).
+    - :meth:`calibrated`: mass and Eq. 46 coefficients identified for this vehicle, as the
+      paper assumes. No force-scale state; the vertical wind is a random walk as Eq. 53; a
+      body-z accelerometer-bias state with the sensor's turn-on 1-sigma (a datasheet value)
+      as prior takes the constant z offset, which otherwise leaks into the vertical wind and,
+      through the airspeed terms of the thrust, into the horizontal wind.
     """
 
     accel_noise_m_s2: tuple[float, float, float] = (0.12, 0.12, 0.25)
@@ -220,9 +235,10 @@ class EstimatorConfig:
     #: absolute vertical-wind term, m/s.
     model_error_rel_h: float = 0.008
     model_error_d_m_s: float = 0.4
-    #: Accelerometer-bias states (FRD). Off by default: at a constant heading a horizontal
-    #: bias is indistinguishable from a wind change, and the z bias from the force scale.
-    bias_states: bool = False
+    #: Body axes (0 = x, 1 = y, 2 = z, FRD) with an accelerometer-bias state. None by default:
+    #: at a constant heading a horizontal bias is indistinguishable from a wind change, and the
+    #: z bias from the force scale; the calibrated preset estimates the z bias alone.
+    bias_axes: tuple[int, ...] = ()
     bias_walk_m_s2: float = 0.002  # per sqrt(s)
     bias_sigma0_m_s2: float = 0.05
     #: Initial state: zero wind with a large covariance (no prior, as in the paper).
@@ -238,6 +254,42 @@ class EstimatorConfig:
     direction_cutoff_hz: float = 0.2  # Butterworth low-pass on the wind direction (heading command)
     direction_order: int = 2
     direction_rate_hz: float = 250.0  # nominal output rate the Butterworth is designed for
+
+    @classmethod
+    def uncalibrated(cls, **overrides) -> EstimatorConfig:
+        """Vehicle not identified (mass and force model known to a few %): force-scale state,
+        mean-reverting vertical wind. The default, and the right choice for a real vehicle
+        unless it was identified."""
+        return replace(cls(), **overrides)
+
+    @classmethod
+    def calibrated(cls, **overrides) -> EstimatorConfig:
+        """Vehicle mass and Eq. 46 model identified (the paper's assumption): no force-scale
+        state, random-walk vertical wind (Eq. 53), body-z accelerometer bias state (prior
+        0.02 m/s^2 1-sigma, the IMU's turn-on bias; random walk 5e-4 m/s^2/sqrt(s), its
+        in-run drift), smaller model-error term on the reported vertical covariance."""
+        base = replace(
+            cls(),
+            scale_state=False,
+            vertical_wind_tau_s=None,
+            bias_axes=(2,),
+            bias_sigma0_m_s2=0.02,
+            bias_walk_m_s2=5e-4,
+            model_error_d_m_s=0.25,
+        )
+        return replace(base, **overrides)
+
+    @classmethod
+    def preset(cls, name: str, **overrides) -> EstimatorConfig:
+        """The preset called ``name`` (one of :data:`PRESETS`)."""
+        if name not in PRESETS:
+            raise ValueError(f"unknown estimator calibration {name!r}; choose from {', '.join(PRESETS)}")
+        return getattr(cls, name)(**overrides)
+
+
+#: Preset names of :meth:`EstimatorConfig.preset`: whether the vehicle's mass and force model
+#: were identified. Real vehicles default to ``uncalibrated``.
+PRESETS = ("calibrated", "uncalibrated")
 
 
 @dataclass
@@ -301,7 +353,7 @@ class WindEstimator:
         self._p = params.as_array()
         n = 6
         self._i_scale = -1  # index of the force-scale state, -1 = none
-        self._i_bias = -1  # index of the first accelerometer-bias state, -1 = none
+        self._bias_idx = np.full(3, -1, dtype=np.int64)  # state index of each body-axis accel bias, -1 = none
         P0 = [cfg.vel_sigma0_m_s**2] * 3 + [cfg.wind_sigma0_m_s**2] * 3
         q = list(np.square(cfg.vel_walk)) + list(np.square(cfg.wind_walk))
         x0 = [0.0] * 6
@@ -311,12 +363,14 @@ class WindEstimator:
             P0.append(1e-12)  # held until released, see EstimatorConfig.scale_hold_s
             q.append(0.0)
             x0.append(1.0)
-        if cfg.bias_states:
-            self._i_bias = n
-            n += 3
-            P0 += [cfg.bias_sigma0_m_s2**2] * 3
-            q += [cfg.bias_walk_m_s2**2] * 3
-            x0 += [0.0] * 3
+        for axis in sorted(set(cfg.bias_axes)):
+            if axis not in (0, 1, 2):
+                raise ValueError(f"bias_axes: body axis {axis} is not 0, 1 or 2")
+            self._bias_idx[axis] = n
+            n += 1
+            P0.append(cfg.bias_sigma0_m_s2**2)
+            q.append(cfg.bias_walk_m_s2**2)
+            x0.append(0.0)
         self.n = n
         points = MerweScaledSigmaPoints(self.n, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
         self.ukf = _UKF(dim_x=self.n, dim_z=3, dt=0.004, hx=None, fx=None, points=points)
@@ -526,7 +580,7 @@ class WindEstimator:
             ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
         if kind == "accel":
             h = _accel_batch(
-                ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p, self._i_scale, self._i_bias, self._fz_ref
+                ukf.sigmas_f, self._R, self._rates, self._w_rot, self._p, self._i_scale, self._bias_idx, self._fz_ref
             )
         else:
             Rm = self._R
@@ -668,6 +722,16 @@ class WindEstimator:
         if i < 0:
             return 1.0, 0.0
         return float(self.ukf.x[i]), float(math.sqrt(max(self.ukf.P[i, i], 0.0)))
+
+    @property
+    def accel_bias(self) -> tuple[np.ndarray, np.ndarray]:
+        """Accelerometer-bias estimate and 1-sigma (FRD, m/s^2); zero on axes without a state."""
+        b, sig = np.zeros(3), np.zeros(3)
+        for axis, j in enumerate(self._bias_idx):
+            if j >= 0:
+                b[axis] = self.ukf.x[j]
+                sig[axis] = math.sqrt(max(self.ukf.P[j, j], 0.0))
+        return b, sig
 
     @property
     def state(self) -> np.ndarray:

@@ -17,7 +17,7 @@ from estimator.inprocess import InProcessRunner
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.metrics import accuracy, moving_average, reconvergence_time
 from estimator.rpm_free import MotorCommandModel
-from estimator.ukf import WindEstimator
+from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
 from sitl.frames import euler_to_quat
 from sitl.link.dialect import mavlink
 from sitl.rotor_model import hover_rotor_speed
@@ -96,6 +96,43 @@ def test_two_sigma_coverage_over_seeds():
         cov.append(a.coverage_2sigma_axis[:2])
     c = float(np.mean(cov))
     assert 0.88 <= c <= 0.995, c
+
+
+def test_presets_structure_and_selection():
+    """uncalibrated = the default (force scale, OU vertical wind); calibrated = no scale,
+    random-walk vertical wind, body-z accelerometer bias only; unknown names are refused."""
+    assert EstimatorConfig.uncalibrated() == EstimatorConfig() == EstimatorConfig.preset("uncalibrated")
+    cal = EstimatorConfig.preset("calibrated")
+    assert not cal.scale_state and cal.vertical_wind_tau_s is None and cal.bias_axes == (2,)
+    est = WindEstimator(load_vehicle(), cal)
+    assert est.n == 7 and list(est._bias_idx) == [-1, -1, 6] and est.force_scale == (1.0, 0.0)
+    assert WindEstimator(load_vehicle()).n == 7 and WindEstimator(load_vehicle())._i_scale == 6
+    assert EstimatorConfig.calibrated(bias_axes=(0, 2)).bias_axes == (0, 2)
+    with pytest.raises(ValueError):
+        EstimatorConfig.preset("factory")
+    with pytest.raises(ValueError):
+        WindEstimator(load_vehicle(), EstimatorConfig.calibrated(bias_axes=(3,)))
+    from windseek.cmd_estimate import default_calibration
+
+    assert PRESETS == ("calibrated", "uncalibrated")
+    assert default_calibration(False) == "calibrated" and default_calibration(True) == "uncalibrated"
+
+
+def test_calibrated_preset_exact_model_accuracy():
+    """Exact model, paper-s1 in turbulence (first 16 s, seeds 1 and 3, turn-on z biases of
+    -0.018 and -0.018 m/s^2): the calibrated preset keeps the vertical 1-s error well within
+    the S1 goal (0.6 m/s) and the horizontal one within 0.3 m/s, with honest coverage; only
+    the z bias is estimated and it stays within about two prior sigmas."""
+    for seed in (1, 3):
+        sc = load_scenario("paper-s1").with_duration(16.0)
+        r = InProcessRunner(sc, seed=seed, config=EstimatorConfig.calibrated())
+        log = r.run()
+        a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=6.0)
+        assert a.rmse_horizontal_avg_ms < 0.3, (seed, a.rmse_horizontal_avg_ms)
+        assert a.rmse_avg_ms[2] < 0.45, (seed, a.rmse_avg_ms)
+        assert 0.9 <= a.coverage_2sigma <= 0.999, (seed, a.coverage_2sigma)
+        b, b_sig = r.estimator.accel_bias
+        assert b[0] == b[1] == 0.0 and abs(b[2]) < 0.04 and 0.0 < b_sig[2] < 0.02, (b, b_sig)
 
 
 def test_deterministic():
