@@ -279,8 +279,12 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, out: Path, missing: 
 
 
 def summarize(fd: FlightData, track: EstimatorTrack | None, missing: list[str], out: Path,
-              settle_s: float = 5.0) -> dict:  # fmt: skip
-    """The review summary as a JSON-able dictionary (m/s NED, deg from-direction)."""
+              settle_s: float = 5.0, min_height_m: float = 1.0) -> dict:  # fmt: skip
+    """The review summary as a JSON-able dictionary (m/s NED, deg from-direction).
+
+    The wind figures leave out the first ``settle_s`` of each airborne segment and, when the log
+    has positions, the samples less than ``min_height_m`` above the segment's take-off point.
+    """
     segs = fd.airborne_segments()
     s: dict = {
         "file": str(fd.path),
@@ -299,11 +303,26 @@ def summarize(fd: FlightData, track: EstimatorTrack | None, missing: list[str], 
     if not s["wind_estimated"]:
         return s
     ok = track.t >= track.segment_start + settle_s
+    if len(fd.position) and min_height_m > 0:
+        # Ground contact and ground effect: the landed state comes a fraction of a second to seconds
+        # after touchdown (the autopilot's land detector), and the rotor model does not hold there.
+        # Ground level: the lowest point of the segment and of the 30 s before it (the take-off point
+        # or the touchdown; the in-air state may come only once the take-off is done).
+        pt, pz = fd.position.t, fd.position.v[:, 2]
+        z = np.interp(track.t, pt, pz)
+        ground = {}
+        for a, b in fd.airborne_segments():
+            sel = (pt >= a - 30.0) & (pt <= b)
+            ground[a] = float(pz[sel].max()) if sel.any() else math.nan
+        z_ground = np.array([ground.get(a, math.nan) for a in track.segment_start])
+        ok &= ~((z_ground - z) < min_height_m)  # NaN (no position there): kept
     if not ok.any():
         ok = np.ones(len(track.t), dtype=bool)
     w = track.wind[ok]
     mean = w.mean(axis=0)
     s["settle_s"] = settle_s
+    s["min_height_m"] = min_height_m if len(fd.position) else None
+    s["samples_scored"] = int(ok.sum())
     s["imu_steps"] = track.imu_steps
     s["wind_mean_ned_ms"] = [round(float(v), 3) for v in mean]
     s["wind_std_ned_ms"] = [round(float(v), 3) for v in w.std(axis=0)]
@@ -329,6 +348,7 @@ def review(
     config: EstimatorConfig | None = None,
     rate_hz: float = 25.0,
     settle_s: float = 5.0,
+    min_height_m: float = 1.0,
 ) -> ReviewResult:
     """Convert one log to a ``.rrd`` (default: next to the input, suffix ``.rrd``) and report.
 
@@ -340,6 +360,9 @@ def review(
         config: estimator tuning.
         rate_hz: rate [Hz] of the estimate, pose and rotor series in the recording.
         settle_s: seconds at the start of each airborne segment left out of the figures.
+        min_height_m: samples lower than this above the take-off point [m] are left out of the
+            figures (touchdown comes before the landed state; ``windseek sitl`` scores the live
+            estimate the same way).
     """
     path = Path(path)
     out = path.with_suffix(".rrd") if out is None else Path(out)
@@ -352,7 +375,7 @@ def review(
         if not len(track.t):
             missing.append("the estimator produced no output (no airborne time with all inputs present)")
     write_rrd(fd, track, out, missing, rate_hz)
-    return ReviewResult(fd, track, out, missing, summarize(fd, track, missing, out, settle_s))
+    return ReviewResult(fd, track, out, missing, summarize(fd, track, missing, out, settle_s, min_height_m))
 
 
 def format_summary(s: dict) -> str:
@@ -367,7 +390,8 @@ def format_summary(s: dict) -> str:
     lines += [f"note: {n}" for n in s["notes"]]
     if s["wind_estimated"]:
         m, sd = s["wind_mean_ned_ms"], s["wind_std_ned_ms"]
-        lines.append(f"wind estimate (after {s['settle_s']:g} s per segment): mean N {m[0]:.2f} E {m[1]:.2f} "
+        above = "" if s.get("min_height_m") is None else f", above {s['min_height_m']:g} m"
+        lines.append(f"wind estimate (after {s['settle_s']:g} s per segment{above}): mean N {m[0]:.2f} E {m[1]:.2f} "
                      f"D {m[2]:.2f} m/s, std {sd[0]:.2f} {sd[1]:.2f} {sd[2]:.2f} m/s; "
                      f"{s['wind_speed_mean_ms']:.2f} m/s from {s['wind_from_mean_deg']:.0f} deg")  # fmt: skip
         for key, what in (("rmse_vs_truth_ms", "RMSE vs simulation truth"),

@@ -152,6 +152,8 @@ class FlightData:
                 start = None
         if start is not None:
             segs.append((start, t1))
+        # clipped to the data: a state change timed outside it must not add time nobody logged
+        segs = [(max(a, t0), min(b, t1)) for a, b in segs]
         return [s for s in segs if s[1] > s[0]]
 
 

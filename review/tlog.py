@@ -7,8 +7,11 @@ common.xml + ESC_INFO/ESC_STATUS), CRC-checked; the ArduPilot WIND message (168,
 common.xml) is decoded here by hand. Records that do not start with a frame are resynchronized
 on the next one; bad CRCs and unknown message ids are counted in the notes, never fatal.
 
-Which messages (the vehicle is the system of the first autopilot HEARTBEAT; other systems,
-such as the ground station's own heartbeats in a MAVProxy log, are ignored):
+Which messages (the vehicle is the system and component of the first autopilot HEARTBEAT; other
+systems, such as the ground station's own heartbeats in a MAVProxy log or a MAVSDK mission's
+setpoints and PINGs, are ignored; of the vehicle's other components, such as ``windseek
+estimator`` (component 191) or a companion computer, only WIND_COV and STATUSTEXT are kept, so
+their HEARTBEATs never count as the autopilot's arming state):
 
 - estimator inputs are decoded by :class:`estimator.mavlink_adapter.MavlinkWindAdapter`, the
   same code that feeds the live estimator, with one source per group chosen from the whole
@@ -25,10 +28,13 @@ such as the ground station's own heartbeats in a MAVProxy log, are ignored):
   state, else arming), mode and arming changes (HEARTBEAT), STATUSTEXT.
 
 Time: a message's own time stamp (time_usec or time_boot_ms: the autopilot's boot clock);
-messages without one (RAW_RPM, HEARTBEAT, STATUSTEXT) take the latest boot time seen. The
-logging wall-clock time is not used (at ``windseek sitl --speed 4`` it runs 4x slower than
-the boot clock). Time stamps on a UNIX or GPS epoch (ArduPilot's GPS_RAW_INT) are replaced by
-the latest boot time.
+messages without one (RAW_RPM, HEARTBEAT, EXTENDED_SYS_STATE, STATUSTEXT) take the latest boot
+time seen in the autopilot's own messages. The logging wall-clock time is not used (at
+``windseek sitl --speed 4`` it runs 4x slower than the boot clock). Time stamps on a UNIX or GPS
+epoch (ArduPilot's GPS_RAW_INT) are replaced by the latest boot time. PING's time_usec is the
+requester's clock echoed (a MAVSDK client sends its host's monotonic time), never the boot clock:
+it is ignored, or a single PING reply would push every later unstamped message (the landed state)
+thousands of seconds ahead.
 """
 
 from __future__ import annotations
@@ -57,6 +63,12 @@ SEVERITY_LEVEL = {0: "CRITICAL", 1: "CRITICAL", 2: "CRITICAL", 3: "ERROR", 4: "W
 #: Motor orders (ESC / output number -> rotor index), see ``estimator.mavlink_adapter``.
 MOTOR_ORDERS = {"windseek": SITL_ORDER, "quad-x": PX4_QUAD_X}
 SIM_TRUTH_NAMES = ("TRUEWN", "TRUEWE", "TRUEWD")
+#: Messages whose time field is not the sender's boot clock: PING echoes the requester's time_usec
+#: (MAVSDK sends its host's monotonic clock, thousands of seconds).
+FOREIGN_TIME_TYPES = frozenset({"PING"})
+#: What other components of the vehicle's system may contribute (an external wind estimator's
+#: WIND_COV, a companion's or mission's status texts); everything else comes from the autopilot.
+OTHER_COMPONENT_TYPES = frozenset({"WIND_COV", "STATUSTEXT"})
 
 
 class _Collector:
@@ -93,16 +105,20 @@ class _Collector:
 class _ArduWind:
     """ArduPilot WIND decoded by hand (not in the project dialect)."""
 
-    def __init__(self, payload: bytes, src_system: int) -> None:
+    def __init__(self, payload: bytes, src_system: int, src_component: int) -> None:
         p = payload.ljust(12, b"\0")
         self.direction, self.speed, self.speed_z = struct.unpack("<fff", p[:12])
         self._src = src_system
+        self._comp = src_component
 
     def get_type(self) -> str:
         return "WIND"
 
     def get_srcSystem(self) -> int:  # noqa: N802 - pymavlink's name
         return self._src
+
+    def get_srcComponent(self) -> int:  # noqa: N802 - pymavlink's name
+        return self._comp
 
 
 def _frame_length(buf: bytes, i: int) -> int | None:
@@ -146,9 +162,9 @@ def _decode_wind(frame: bytes) -> _ArduWind | None:
     """ArduPilot WIND (id 168) from a raw frame, CRC-checked; None if it is not one."""
     if frame[0] == MAGIC_V2:
         hdr, msgid = 10, frame[7] | (frame[8] << 8) | (frame[9] << 16)
-        src = frame[5]
+        src, comp = frame[5], frame[6]
     else:
-        hdr, msgid, src = 6, frame[5], frame[3]
+        hdr, msgid, src, comp = 6, frame[5], frame[3], frame[4]
     if msgid != WIND_ID:
         return None
     ln = frame[1]
@@ -156,7 +172,7 @@ def _decode_wind(frame: bytes) -> _ArduWind | None:
     crc.accumulate(bytes([WIND_CRC_EXTRA]))
     if crc.crc != struct.unpack("<H", frame[hdr + ln : hdr + ln + 2])[0]:
         return None
-    return _ArduWind(frame[hdr : hdr + ln], src)
+    return _ArduWind(frame[hdr : hdr + ln], src, comp)
 
 
 def decode_frames(records: list[tuple[float, bytes]], notes: list[str]) -> list[tuple[float, object]]:
@@ -187,20 +203,22 @@ def decode_frames(records: list[tuple[float, bytes]], notes: list[str]) -> list[
     return out
 
 
-def _vehicle_system(msgs: list[tuple[float, object]]) -> int | None:
-    """System id of the first HEARTBEAT from an autopilot (not a ground station)."""
+def _vehicle_id(msgs: list[tuple[float, object]]) -> tuple[int, int] | None:
+    """(system, component) of the first HEARTBEAT from an autopilot (not a ground station)."""
     for _, m in msgs:
         if (
             m.get_type() == "HEARTBEAT"
             and m.type != mavlink.MAV_TYPE_GCS
             and m.autopilot != mavlink.MAV_AUTOPILOT_INVALID
         ):
-            return m.get_srcSystem()
+            return m.get_srcSystem(), m.get_srcComponent()
     return None
 
 
 def _msg_time(msg: object, t_last: float) -> tuple[float, bool]:
     """(time [s], own?) of a message: its boot-clock stamp, else the latest boot time seen."""
+    if msg.get_type() in FOREIGN_TIME_TYPES:
+        return t_last, False
     if hasattr(msg, "time_usec"):
         t = msg.time_usec * 1e-6
     elif hasattr(msg, "time_boot_ms"):
@@ -256,14 +274,23 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
     msgs = decode_frames(records, fd.notes)
     if not msgs:
         raise ValueError(f"{path}: no MAVLink frames found (not a telemetry log?)")
-    sysid = _vehicle_system(msgs)
-    if sysid is None:
+    vid = _vehicle_id(msgs)
+    sysid = None if vid is None else vid[0]
+    if vid is None:
         fd.notes.append("no autopilot HEARTBEAT: messages of every system used")
     else:
         others = sum(1 for _, m in msgs if m.get_srcSystem() != sysid)
         if others:
             fd.notes.append(f"{others} message(s) of systems other than the vehicle ({sysid}) ignored")
         msgs = [(t, m) for t, m in msgs if m.get_srcSystem() == sysid]
+        # Other components of the vehicle's system (an external estimator, a companion computer): their
+        # HEARTBEATs are not the autopilot's arming state and their time stamps are not its clock.
+        comp = [(t, m) for t, m in msgs if m.get_srcComponent() == vid[1] or m.get_type() in OTHER_COMPONENT_TYPES]
+        if len(comp) < len(msgs):
+            fd.notes.append(f"{len(msgs) - len(comp)} message(s) of components other than the autopilot "
+                            f"({sysid}:{vid[1]}) ignored")  # fmt: skip
+        msgs = comp
+    ap_comp = None if vid is None else vid[1]
     for _, m in msgs:
         fd.counts[m.get_type()] += 1
     names = {m.name for _, m in msgs if m.get_type() == "NAMED_VALUE_FLOAT"}
@@ -299,12 +326,14 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
     geo0: tuple[float, float, float] | None = None
     last_mode: str | None = None
     bad_time = 0
+    wind_comps: set[int] = set()
     for _, m in msgs:
         mtype = m.get_type()
         t, own = _msg_time(m, t_last)
         if own:
-            t_last = max(t_last, t)
-        elif hasattr(m, "time_usec") or hasattr(m, "time_boot_ms"):
+            if ap_comp is None or m.get_srcComponent() == ap_comp:
+                t_last = max(t_last, t)  # only the autopilot's stamps move its clock
+        elif (hasattr(m, "time_usec") or hasattr(m, "time_boot_ms")) and mtype not in FOREIGN_TIME_TYPES:
             bad_time += 1
         adapter.t_last = t_last
         if mtype == fd.sources.get("attitude"):
@@ -335,6 +364,7 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
             elif m.name in SIM_TRUTH_NAMES:
                 truth_parts.setdefault(m.time_boot_ms, {})[m.name] = float(m.value)
         elif mtype == "WIND_COV":
+            wind_comps.add(m.get_srcComponent())
             apw_rows.append((t, np.array([m.wind_x, m.wind_y, m.wind_z], dtype=float)))
         elif mtype == "WIND":
             d = math.radians(m.direction)
@@ -361,7 +391,8 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
                 fd.texts.append((t, f"mode {mode}", "INFO"))
                 last_mode = mode
         elif mtype == "STATUSTEXT":
-            fd.texts.append((t, str(m.text), SEVERITY_LEVEL.get(m.severity, "INFO")))
+            who = "" if m.get_srcComponent() == ap_comp or ap_comp is None else f"[{m.get_srcComponent()}] "
+            fd.texts.append((t, who + str(m.text), SEVERITY_LEVEL.get(m.severity, "INFO")))
 
     rows = [r for r in collector.rows if r.t < MAX_BOOT_TIME_S]
     if len(rows) < len(collector.rows):
@@ -386,6 +417,8 @@ def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 
     fd.autopilot_wind = Series.from_rows(apw_rows, "autopilot", 3)
     if apw_rows:
         fd.sources["autopilot_wind"] = "WIND_COV" if fd.counts["WIND_COV"] else "WIND"
+        if wind_comps - {ap_comp, None}:
+            fd.sources["autopilot_wind"] += " (component " + ", ".join(map(str, sorted(wind_comps))) + ")"
     rot = [(r.t, r.value) for r in fd.inputs if r.kind == "rotors"] or cmd_rows
     fd.rotors = Series.from_rows(rot, "rotors", 4)
     if landed:

@@ -442,3 +442,118 @@ def test_ardupilot_style_tlog_with_gcs_traffic_and_garbage(tmp_path: Path) -> No
     assert {"world/vehicle", "wind/east/autopilot", "wind/speed/autopilot"} <= set(paths), paths
     _, we = log.scalars("wind/east/autopilot")
     assert np.allclose(we, -4.0, atol=1e-5)
+
+
+# ------------------------------------------------------------------------------ demo-style tlog
+DEMO_SCENARIO_TOML = SCENARIO_TOML.replace('name = "review-test"', 'name = "review-demo-test"') + """
+[flight]
+land_speed_m_s = 1.5
+disarm_after_land_s = 0.5
+"""
+
+
+def _fly_demo_style(scenario_file: Path, tlog: Path, hover_until_s: float) -> None:
+    """``windseek sitl --forward --tlog`` (the SITL's own tlog: wall-clock UNIX record times, both
+    directions, forwarded frames) with ``windseek estimator`` (system 1, component 191: its HEARTBEATs
+    and WIND_COV) and a MAVSDK-like client (system 245, component 190: GCS heartbeats, PINGs stamped
+    with a host clock, arm, take-off, hover, land)."""
+    p_cli, p_est = free_port(), free_port()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", p_cli))
+    sock.settimeout(0.05)
+    sitl = subprocess.Popen([sys.executable, "-m", "windseek.cli", "sitl", str(scenario_file), "--speed", str(SPEED),
+                             "--udp", f"127.0.0.1:{p_est}", f"127.0.0.1:{p_cli}", "--forward", "--tlog", str(tlog)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    est = subprocess.Popen([sys.executable, "-m", "windseek.cli", "estimator", "--connect",
+                            f"udpin://127.0.0.1:{p_est}", "--imu-average", "2"],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    enc = M.MAVLink(None, srcSystem=245, srcComponent=190)
+    parser = M.MAVLink(None)
+    parser.robust_parsing = True
+    st = {"t": 0.0, "armed": False, "was_armed": False, "est_wind": 0, "addr": None}
+
+    def pump(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            try:
+                data, addr = sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            st["addr"] = addr
+            for m in parser.parse_buffer(data) or []:
+                if m.get_srcComponent() == 1 and hasattr(m, "time_boot_ms"):
+                    st["t"] = max(st["t"], m.time_boot_ms * 1e-3)
+                if m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1:
+                    st["armed"] = bool(m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+                    st["was_armed"] |= st["armed"]
+                elif m.get_type() == "WIND_COV":
+                    st["est_wind"] += 1
+
+    def send(msg: object) -> None:
+        sock.sendto(msg.pack(enc), st["addr"])
+
+    def chatter() -> None:  # what MAVSDK sends on its own: a GCS heartbeat and a PING on its host clock
+        send(enc.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0))
+        send(enc.ping_encode(int((time.monotonic() + 3600.0) * 1e6), 0, 0, 0))
+
+    try:
+        pump(0.0)
+        deadline = time.monotonic() + 40.0
+        while st["addr"] is None and time.monotonic() < deadline and sitl.poll() is None:
+            pump(0.2)
+        assert st["addr"] is not None, f"no telemetry from windseek sitl: {sitl.poll()}"
+        pump(1.0 / SPEED + 0.3)  # the first GNSS fix (pre-arm check)
+        chatter()
+        for command, p1, p7 in ((M.MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0), (M.MAV_CMD_NAV_TAKEOFF, 0.0, math.nan)):
+            send(enc.command_long_encode(1, 1, command, 0, p1, 0, 0, 0, 0, 0, p7))
+            pump(0.2)
+        deadline = time.monotonic() + 4.0 * hover_until_s / SPEED + 15.0
+        while st["t"] < hover_until_s and time.monotonic() < deadline:
+            chatter()
+            pump(1.0)
+        send(enc.command_long_encode(1, 1, M.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, math.nan, math.nan, math.nan))
+        deadline = time.monotonic() + 15.0
+        while st["armed"] and time.monotonic() < deadline:
+            chatter()
+            pump(0.5)
+        pump(2.0 / SPEED)  # a little ground time after the disarm
+        assert st["was_armed"] and not st["armed"], "the vehicle did not take off and land"
+        assert st["est_wind"] > 10, "no WIND_COV from windseek estimator came through the SITL's forwarding"
+    finally:
+        for p in (est, sitl):
+            p.send_signal(signal.SIGTERM)
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        sock.close()
+
+
+def test_demo_style_sitl_tlog(tmp_path: Path) -> None:
+    """The SITL's own tlog of a demo-like run: the autopilot's PING replies carry the client's host clock
+    (thousands of s), the estimator's HEARTBEATs come from system 1 too, and the landed state comes after
+    touchdown. Airborne time stays within the log, and the offline estimate matches the truth as well as the
+    live estimator does (hover in a steady 3.2 m/s wind)."""
+    sc = tmp_path / "review-demo-test.toml"
+    sc.write_text(DEMO_SCENARIO_TOML)
+    tlog = tmp_path / "demo.tlog"
+    _fly_demo_style(sc, tlog, hover_until_s=20.0)
+    res = review(tlog)
+    s, fd = res.summary, res.flight
+    # the traffic that used to mislead the reader is there
+    assert s["messages"].get("PING", 0) >= 1  # the SITL answered the client's PINGs
+    assert any("components other than the autopilot" in n for n in s["notes"]), s["notes"]
+    assert s["sources"]["autopilot_wind"] == "WIND_COV (component 191)", s["sources"]
+    assert s["sources"]["in_air"] == "EXTENDED_SYS_STATE"
+    # time: one take-off and one landing, on the boot clock, within the log
+    assert s["airborne_segments"] == 1
+    assert 10.0 < s["airborne_s"] <= s["duration_s"] < 60.0, s
+    (a, b), = fd.airborne_segments()
+    assert b < fd.time_range[1] - 0.1  # the landing was seen before the log ended
+    assert [x for _, x, _ in fd.texts if x in ("armed", "disarmed")] == ["disarmed", "armed", "disarmed"]
+    # accuracy: the estimator ran in the air only, and the touchdown is out of the figures
+    r = s["rmse_vs_truth_ms"]
+    assert r["horizontal"] < 0.6, s
+    assert abs(s["wind_mean_ned_ms"][0] - WIND[0]) < 0.4 and abs(s["wind_mean_ned_ms"][1] - WIND[1]) < 0.4
+    assert s["diff_vs_autopilot_ms"]["horizontal"] < 0.6, s
