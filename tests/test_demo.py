@@ -156,9 +156,30 @@ def test_demo_runs_three_processes_and_writes_logs(tmp_path: Path) -> None:
     mavutil.mavlink = mav
     conn = mavutil.mavlink_connection(str(tlog))
     kinds: dict[tuple[str, int], int] = {}
+    states: list[str] = []
+    src: dict[str, float] = {}
+    systems = set()
     while (m := conn.recv_match()) is not None:
         k = (m.get_type(), m.get_srcComponent())
         kinds[k] = kinds.get(k, 0) + 1
+        systems.add(m.get_srcSystem())
+        if k == ("STATUSTEXT", 190) and m.text.startswith("state: "):
+            states.append(m.text[len("state: "):])
+        elif k == ("NAMED_VALUE_FLOAT", 190):
+            src[m.name] = m.value
     assert kinds.get(("WIND_COV", 191), 0) > 50 and kinds.get(("HIL_SENSOR", 1), 0) > 1000
     assert kinds.get(("SET_POSITION_TARGET_LOCAL_NED", 190), 0) > 10  # the mission's offboard setpoints
+    # The mission itself published its strategy states and its declaration (nothing relayed them).
+    assert 250 not in systems, systems
+    assert states and states[-1] == s["mission"]["state"], (states, s["mission"]["state"])
+    assert all(a != b for a, b in zip(states, states[1:], strict=False)), states  # on change only
+    if s["declared_ned_m"]:
+        got = [src.get(n) for n in ("SRC_N", "SRC_E", "SRC_D")]
+        assert got == pytest.approx(s["declared_ned_m"], abs=1e-3), (got, s["declared_ned_m"])
+        assert src.get("SRC_CONF") == pytest.approx(s["confidence"], abs=1e-3)
+        assert s["truth"]["declared"]["declared_ned"] == pytest.approx(s["declared_ned_m"], abs=1e-3)
+        assert s["truth"]["declared_error_horizontal_m"] == pytest.approx(s["declared_error_horizontal_m"], abs=0.01)
+    comp = next(c for c in log.components("log/mission") if c.lower().endswith("text"))
+    _, texts = log.column("log/mission", comp)
+    assert any("] state: " in str(x) for x in texts), texts[:10]  # the recording shows the states
     print(f"demo: {wall:.1f} s wall, found {s['found']}, {s['reason']}")

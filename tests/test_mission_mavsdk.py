@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import math
 import select
 import socket
@@ -31,6 +32,7 @@ from mission.runners.inprocess import SUCCESS_RADIUS_M
 from mission.runners.mavsdk_runner import MissionConfig, px4_mode_name, run_mission
 from mission.safety import SafetyLimits
 from sitl.link.dialect import mavlink as mav
+from sitl.link.wire_names import STATE_PREFIX
 from sitl.scenario import load_scenario
 
 pytest.importorskip("mavsdk")
@@ -43,10 +45,10 @@ SPEED = 5.0
 class Sitl:
     """``windseek sitl`` in a subprocess, streaming to the given UDP peers."""
 
-    def __init__(self, peers: list[int], speed: float = SPEED) -> None:
+    def __init__(self, peers: list[int], speed: float = SPEED, *extra: str) -> None:
         self.port = free_port()
         cmd = [sys.executable, "-m", "windseek.cli", "sitl", SCENARIO, "--speed", str(speed), "--true-wind-hz", "0",
-               "--udp-bind", f"127.0.0.1:{self.port}"]  # fmt: skip
+               "--udp-bind", f"127.0.0.1:{self.port}", *extra]  # fmt: skip
         for p in peers:
             cmd += ["--udp", f"127.0.0.1:{p}"]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
@@ -80,6 +82,7 @@ class Observer(threading.Thread):
         self.modes: list[tuple[float, str, bool]] = []  # (t, mode, armed) at every change
         self.track: list[tuple[float, np.ndarray]] = []
         self.texts: list[tuple[float, str]] = []
+        self.mission_texts: list[str] = []
         self.stop = threading.Event()
 
     def run(self) -> None:
@@ -94,13 +97,15 @@ class Observer(threading.Thread):
                     self.t = m.time_boot_ms * 1e-3
                     self.pos = np.array([m.x, m.y, m.z])
                     self.track.append((self.t, self.pos))
-                elif mtype == "HEARTBEAT":
+                elif mtype == "HEARTBEAT" and (m.get_srcSystem(), m.get_srcComponent()) == (1, 1):
                     mode, armed = px4_mode_name(m.custom_mode), bool(m.base_mode & 128)
                     if (mode, armed) != (self.mode, self.armed):
                         self.modes.append((self.t, mode, armed))
                     self.mode, self.armed = mode, armed
                 elif mtype == "STATUSTEXT":
                     self.texts.append((self.t, m.text))
+                    if m.get_srcSystem() != 1:  # forwarded (sitl --forward): the mission's own texts
+                        self.mission_texts.append(m.text)
 
     def wait(self, pred, timeout: float, what: str) -> None:
         end = time.monotonic() + timeout
@@ -154,9 +159,10 @@ def _config(port: int, lines: list[str], **kw: object) -> MissionConfig:
 
 
 @pytest.mark.asyncio
-async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observer) -> None:
+async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observer, tmp_path: Path) -> None:
     port = free_port()
-    sitl = Sitl([port, observer.port])
+    summary = tmp_path / "sitl-summary.json"
+    sitl = Sitl([port, observer.port], SPEED, "--forward", "--exit-summary", str(summary))
     lines: list[str] = []
     wall0 = time.monotonic()
     try:
@@ -190,6 +196,17 @@ async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observe
     bad = {k: v for k, v in res.estimator["rejected"].items() if not k.endswith("not_ready")}
     assert sum(bad.values()) < 0.01 * acc["imu"], bad
     assert wall < 85.0
+    # The runner published its strategy states (STATUSTEXT "state: ...", forwarded to the listener) and
+    # the declaration (NAMED_VALUE_FLOAT SRC_N/E/D/CONF, scored by the SITL's exit summary).
+    states = [x for x in observer.mission_texts if x.startswith(STATE_PREFIX)]
+    assert states and states[-1] == STATE_PREFIX + res.state, (states, res.state)
+    assert all(a != b for a, b in zip(states, states[1:], strict=False)), states  # on change only
+    truth = json.loads(summary.read_text())
+    assert truth["statustexts_received"] >= len(states)
+    assert truth["declared"] is not None, truth
+    assert truth["declared"]["declared_ned"] == pytest.approx(res.declared_ned, abs=1e-3)
+    assert truth["declared"]["confidence"] == pytest.approx(res.confidence, abs=1e-3)
+    assert truth["declared_error_horizontal_m"] == pytest.approx(err, abs=0.01)
 
 
 @pytest.mark.asyncio

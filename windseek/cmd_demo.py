@@ -19,10 +19,10 @@ truth. Files, beside each other in ``--logs`` (default ``logs/``)::
     <UTC time>-<scenario>-<strategy>.json    the summary (mission result + the SITL's truth figures)
     <UTC time>-<scenario>-<strategy>.{sitl,estimator,mission}.log   each process's own output
 
-Relay: the mission runner prints its decisions ("mission: ..." lines) but does not (yet) publish
-them over MAVLink; the demo relays those lines to the SITL as STATUSTEXT and the declaration as
-NAMED_VALUE_FLOAT SRC_N/E/D/CONF (:mod:`sitl.link.wire_names`) from system 250, so the recording
-shows them. Exit status: 0 source found, 1 not found, 2 a process failed (its last lines shown).
+The mission publishes its strategy state (STATUSTEXT ``state: NAME``) and its declaration
+(NAMED_VALUE_FLOAT SRC_N/E/D/CONF, :mod:`sitl.link.wire_names`) over MAVLink itself; the SITL records
+them (.rrd, .tlog, the exit summary's ``declared``). The demo only shows the mission's lines.
+Exit status: 0 source found, 1 not found, 2 a process failed (its last lines shown).
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ import contextlib
 import json
 import math
 import os
-import re
 import signal
 import socket
 import subprocess
@@ -44,9 +43,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, TextIO
 
-RELAY_SYSTEM = 250
 SUCCESS_RADIUS_M = 5.0
-_DECLARED = re.compile(r"source declared at N (-?[\d.]+) E (-?[\d.]+) m \(confidence ([\d.]+)\)")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -146,8 +143,7 @@ class Proc:
 
 
 class Observer(threading.Thread):
-    """A passive UDP peer of the SITL: follows the vehicle for the progress display and relays
-    the mission's lines to the SITL (see the module docstring)."""
+    """A passive UDP peer of the SITL (it never sends): follows the vehicle for the progress display."""
 
     def __init__(self) -> None:
         super().__init__(name="demo-observer", daemon=True)
@@ -158,9 +154,8 @@ class Observer(threading.Thread):
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.2)
         self.port = self.sock.getsockname()[1]
-        self.parser = mav.MAVLink(None, RELAY_SYSTEM, 190)
+        self.parser = mav.MAVLink(None)
         self.parser.robust_parsing = True
-        self.encoder = mav.MAVLink(None, RELAY_SYSTEM, 190)
         self.sitl_addr: tuple[str, int] | None = None
         self.t = 0.0
         self.pos = [0.0, 0.0, 0.0]
@@ -206,14 +201,6 @@ class Observer(threading.Thread):
             self.wind = [m.wind_x, m.wind_y, m.wind_z]
             self.wind_covs += 1
 
-    def send(self, msgs: list[Any]) -> None:
-        if self.sitl_addr is None:
-            return
-        for m in msgs:
-            buf = m.pack(self.encoder)
-            self.encoder.seq = (self.encoder.seq + 1) % 256
-            self.sock.sendto(buf, self.sitl_addr)
-
     def status(self) -> str:
         from recording.sim_hook import wind_speed_from_deg
 
@@ -240,7 +227,6 @@ def run(args: argparse.Namespace) -> int:
 
     from mission.safety import SafetyLimits
     from mission.strategies import STRATEGIES
-    from sitl.link.wire_names import declaration_messages, statustext_message
     from sitl.scenario import load_scenario
 
     if args.strategy not in STRATEGIES:
@@ -269,20 +255,10 @@ def run(args: argparse.Namespace) -> int:
     fence = ",".join(f"{v:g}" for v in (*limits.box_min_ned, *limits.box_max_ned))
     procs: list[Proc] = []
     wall0 = time.monotonic()
-    relayed = {"declared": False}
 
     def on_mission_line(line: str) -> None:
-        if not line.startswith("mission: "):
-            return  # MAVSDK's own debug lines, the autopilot's echoed STATUSTEXT
-        text = line[len("mission: "):]
-        note(f"  {line}")
-        msgs = [statustext_message(text)]
-        m = _DECLARED.search(text)
-        if m:
-            n, e, conf = (float(x) for x in m.groups())
-            msgs += declaration_messages(obs.t, [n, e, obs.pos[2]], conf)
-            relayed["declared"] = True
-        obs.send(msgs)
+        if line.startswith("mission: "):  # not MAVSDK's own debug lines, nor the autopilot's echoed STATUSTEXT
+            note(f"  {line}")
 
     note(f"windseek demo: {sc.name} / {args.strategy} / seed {seed} / speed {args.speed:g}; logs {base}.*")
     try:
@@ -343,10 +319,6 @@ def run(args: argparse.Namespace) -> int:
         mission = _read_json(Path(f"{base}.mission.json"))
         if mission is None:
             raise _FailedError(mis, "the mission printed no result")
-        if not relayed["declared"] and mission.get("declared_ned"):
-            d = mission["declared_ned"]
-            obs.send(declaration_messages(obs.t, d, float(mission.get("confidence") or 0.0)))
-        time.sleep(0.3)  # let the relay reach the SITL before it stops
         est.stop()
         rc_sitl = sitl.stop()
         truth = _read_json(truth_path)

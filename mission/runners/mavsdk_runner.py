@@ -18,6 +18,11 @@ chemical reading come through MAVSDK's ``mavlink_direct`` plugin as JSON fields 
 - mode, armed and landed state: HEARTBEAT (PX4 custom modes), EXTENDED_SYS_STATE; the
   autopilot's STATUSTEXT lines are echoed.
 
+What the runner publishes (:mod:`sitl.link.wire_names`, through ``mavlink_direct``, from the
+MAVSDK ground-station identity): the strategy state on every change as STATUSTEXT ``state: NAME``,
+and the declaration once as NAMED_VALUE_FLOAT ``SRC_N``, ``SRC_E``, ``SRC_D`` (m, NED, local
+frame), then ``SRC_CONF`` (0..1). ``windseek sitl --rrd/--exit-summary`` and any tlog record them.
+
 Wind modes: ``estimated`` (the UKF run live on those messages, default), ``mavlink`` (WIND_COV
 from the autopilot, e.g. PX4's own wind estimate or a relayed external ``windseek`` estimator),
 ``none`` (pure chemotaxis). There is no oracle over MAVLink.
@@ -54,6 +59,7 @@ from mission.strategies import make_strategy
 from mission.strategies.base import Observation, WindInfo
 from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import UpwindFilter
+from sitl.link.wire_names import declaration_fields, publish, state_fields
 
 WIND_MODES = ("estimated", "mavlink", "none")
 
@@ -234,6 +240,10 @@ class MavsdkMission:
         self._dt = 1.0 / self.params.rate_hz
         self._sysid = 0
         self._pending_vel: list[_Msg] = []
+        self._outbox: list[tuple[str, str]] = []  # (message_name, fields_json) for mavlink_direct
+        self._published_state = ""
+        self._publish_failed = False
+        self.direct: Any = None
 
     # ------------------------------------------------------------------ output
     def say(self, line: str) -> None:
@@ -386,7 +396,7 @@ class MavsdkMission:
         cfg, st, res = self.cfg, self.state, self.result
         tel, action, offb = TelemetryAsync(drone), ActionAsync(drone), OffboardAsync(drone)
         direct, param = MavlinkDirectAsync(drone), ParamAsync(drone)
-        self.action, self.offb = action, offb
+        self.action, self.offb, self.direct = action, offb, direct
         names = DIRECT_MESSAGES + (("WIND_COV",) if cfg.wind == "mavlink" else ())
         # One callback for every subscription, run on the event loop in arrival order: the
         # estimator needs its inputs in time order across message types (an async generator per
@@ -535,6 +545,12 @@ class MavsdkMission:
         if res.declared_ned is None:
             res.path_m = round(k["path"], 2)
         res.state = sp.state
+        if sp.state and sp.state != self._published_state:  # published by _search, in this order
+            self._published_state = sp.state
+            self._outbox.append(state_fields(sp.state))
+        if res.declared_ned is not None and not k["declaration_queued"]:
+            k["declaration_queued"] = True
+            self._outbox += declaration_fields(t, res.declared_ned, res.confidence)
         k["sp"] = sp
         try:  # sent at once, from the tick: the synchronous MAVSDK call only queues the message
             self._send_sync(sp.position_ned, sp.velocity_ned, sp.yaw_rad)
@@ -550,7 +566,7 @@ class MavsdkMission:
 
         cfg, st, res = self.cfg, self.state, self.result
         self._k = {"t_arm": t_arm, "t_air": st.t, "searching": False, "path": 0.0, "prev": None,
-                   "chem_seen": st.chem_seq, "sp": None, "abort": None}  # fmt: skip
+                   "chem_seen": st.chem_seq, "sp": None, "abort": None, "declaration_queued": False}  # fmt: skip
         self._tick_event = asyncio.Event()
         self._next_tick = st.t
         offboard = False
@@ -560,6 +576,7 @@ class MavsdkMission:
             self._tick_event.clear()
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._tick_event.wait(), min(0.5, cfg.limits.link_timeout_s))
+            await self._publish()
             if (a := self.watchdog.check(time.monotonic())) is not None:
                 return a
             if self._k["abort"] is not None:
@@ -582,6 +599,21 @@ class MavsdkMission:
                 if res.declared_ned is None:
                     return Abort("search-ended", f"the strategy ended without a declaration (state {sp.state})")
                 return None
+
+    async def _publish(self) -> None:
+        """Send what the ticks queued (strategy state changes, the declaration) over MAVLink:
+        STATUSTEXT ``state: NAME`` and NAMED_VALUE_FLOAT SRC_N/E/D/CONF (:mod:`sitl.link.wire_names`),
+        so a ground station, a tlog and ``windseek sitl --rrd`` see them. A failed send is said once
+        and never stops the mission."""
+        if not self._outbox or self.direct is None:
+            return
+        pairs, self._outbox = self._outbox, []
+        try:
+            await publish(self.direct, pairs)
+        except Exception as e:  # noqa: BLE001 - MavlinkDirectError, a closed link
+            if not self._publish_failed:
+                self._publish_failed = True
+                self.say(f"could not publish {pairs[0][0]} over MAVLink ({e}); the mission goes on")
 
     def _send_sync(self, pos: np.ndarray | None, vel: np.ndarray | None, yaw: float | None) -> None:
         """Clamp and send one offboard setpoint through the synchronous plugin (m, m/s, rad, NED)."""
