@@ -82,7 +82,11 @@ class RrdLog:
                 rb = c.to_record_batch()
                 if "ViewBlueprint:class_identifier" not in rb.schema.names:
                     continue
-                d = rb.to_pydict()
+                # Only the view columns: converting the blueprint's nanosecond timestamp column to
+                # Python datetimes needs pandas, which is not a dependency.
+                wanted = [n for n in ("ViewBlueprint:class_identifier", "ViewBlueprint:space_origin",
+                                      "ViewBlueprint:display_name") if n in rb.schema.names]
+                d = rb.select(wanted).to_pydict()
                 for cls, origin, name in zip(
                     d["ViewBlueprint:class_identifier"],
                     d.get("ViewBlueprint:space_origin", [None] * rb.num_rows),
