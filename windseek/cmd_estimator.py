@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from sitl.link.wire import json_safe
 from sitl.link.wire_names import ESTIMATOR_COMPONENT
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
@@ -245,7 +246,7 @@ class LiveEstimator:
              "speed_m_s": round(speed, 3), "from_deg": round(from_deg, 1), "wind_cov_published": self.published,
              "imu_message": self.imu_type, "inputs": dict(self.adapter.sources), "accepted": dict(e.accepted),
              "rejected": dict(e.rejected), "restarts": self.restarts, "stop_reason": self.reason}  # fmt: skip
-        return _json_safe(d)
+        return json_safe(d)
 
     def line(self) -> str:
         e = self.est
@@ -276,16 +277,6 @@ def warm_up(est: Any) -> None:
         if i % 10 == 0:
             est.set_attitude(t, q)
             est.gnss_velocity(t, np.zeros(3))
-
-
-def _json_safe(o: Any) -> Any:
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: _json_safe(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [_json_safe(v) for v in o]
-    return o
 
 
 def _request_rates(conn: Any, live: LiveEstimator, target: tuple[int, int], mode: str, say: Any) -> None:

@@ -59,6 +59,7 @@ from mission.strategies import make_strategy
 from mission.strategies.base import Observation, WindInfo
 from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import UpwindFilter
+from sitl.link.wire import json_safe
 from sitl.link.wire_names import declaration_fields, publish, state_fields
 
 WIND_MODES = ("estimated", "mavlink", "none")
@@ -154,17 +155,7 @@ class MissionResult:
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        return _json_safe(d)
-
-
-def _json_safe(o: Any) -> Any:
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: _json_safe(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [_json_safe(v) for v in o]
-    return o
+        return json_safe(d)
 
 
 class _Msg:

@@ -230,7 +230,7 @@ class TruthSummary:
         if self.declaration is not None and srcs:
             dn = np.array(self.declaration["declared_ned"][:2])
             d["declared_error_horizontal_m"] = round(min(float(np.hypot(*(dn - np.array(s[:2])))) for s in srcs), 3)
-        return _json_safe(d)
+        return json_safe(d)
 
     def write(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -241,13 +241,14 @@ class TruthSummary:
         self.write()
 
 
-def _json_safe(o: Any) -> Any:
+def json_safe(o: Any) -> Any:
+    """``o`` with non-finite floats replaced by None (strict JSON), recursively."""
     if isinstance(o, float):
         return o if math.isfinite(o) else None
     if isinstance(o, dict):
-        return {k: _json_safe(v) for k, v in o.items()}
+        return {k: json_safe(v) for k, v in o.items()}
     if isinstance(o, list | tuple):
-        return [_json_safe(v) for v in o]
+        return [json_safe(v) for v in o]
     return o
 
 
