@@ -332,8 +332,8 @@ class BaseStrategy:
             self.n_verify_aborted += 1
             return None
         pos = obs.position_ned[0:2]
-        v = self.verify.velocity(obs.t, pos, u, n, p.speed_m_s)
-        if self.verify.n_legs < 2:
+        v = self.verify.velocity(obs.t, pos, u, n, p.verify_speed_m_s)
+        if self.verify.n_legs < p.verify_legs:
             return v
         # Both sides covered without a single hit: one verified end at this candidate.
         cand = self.verify_cand
@@ -410,7 +410,8 @@ class BaseStrategy:
         self.diag = {"peak_near": self.memory.peak_near(cand, 5.0),
                      "median_all": float(np.median(self.memory.all_values)), "repeat": float(repeat),
                      "spread": float(self.verify_spread), "n_verified": float(len(self.verified)),
-                     "n_aborted": float(self.n_verify_aborted)}
+                     "n_aborted": float(self.n_verify_aborted), "n_near": float(n),
+                     "hit_rate": float(self.memory.hit_rate_at_last)}
         return True
 
     # ------------------------------------------------------------------ tick
