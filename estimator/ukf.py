@@ -213,8 +213,20 @@ class EstimatorConfig:
     #: with ``scale_sigma0`` once the filter has run ``scale_hold_s`` and the horizontal wind
     #: 1-sigma is below ``scale_release_wind_sigma_m_s`` (at the latest after 3 hold times):
     #: while the wind is still unknown the filter would explain the large early innovations
-    #: with the scale and lock it in.
-    scale_hold_s: float = 3.0
+    #: with the scale and lock it in. Held too long, the opposite happens: the constant force
+    #: error (a few % of the weight, ~0.5 m/s per % in vertical-wind units) goes to the
+    #: vertical wind, which the cold start drives past the identified vertical-airspeed domain
+    #: (the thrust's tanh saturation, 3 m/s), where the thrust hardly depends on it; it comes
+    #: back only through the mean reversion, and the scale, once released, converges within
+    #: a few seconds to whatever offset is left and then moves only by its slow random walk,
+    #: so that offset stays in the vertical wind for the whole flight (perturbed paper-s1,
+    #: seed 109, 3 % mass error: scale 0.984 after release against 0.965 needed, vertical
+    #: wind 1-2 m/s off until the end). 1.5 s instead of 3 s (perturbed paper-s1/-s2, tuning
+    #: seeds 100-109: vertical 1-s RMSE 1.11 -> 0.92 and 0.76 -> 0.61 m/s, horizontal 0.436
+    #: -> 0.402 and 0.284 -> 0.252; 8 s: vertical 2.2 on paper-s1). Cost: in the first
+    #: seconds after a cold start the early scale takes part of the transient (steady wind,
+    #: exact model, 4-8 s: horizontal ~0.05 m/s worse).
+    scale_hold_s: float = 1.5
     scale_release_wind_sigma_m_s: float = 1.0
     #: Transient detector (see WindEstimator._watch_innovation): time constant (s) of the
     #: low-passed normalized accelerometer innovation, its threshold, and how long (s) the
