@@ -178,6 +178,12 @@ class FlightController:
         self.on_mode_change: list[Callable[[Mode], None]] = []
 
     # ------------------------------------------------------------------ commands
+    @property
+    def on_ground(self) -> bool:
+        """Ground contact as the land detector sees it (PX4's land detector; the landed state
+        stays ON_GROUND/TAKEOFF through spool-up, this is the contact itself)."""
+        return self._on_ground
+
     def say(self, text: str, severity: int = 6) -> None:
         self.events.append(StatusEvent(self._t, severity, text))
 
