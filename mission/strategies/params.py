@@ -94,21 +94,15 @@ class AnemotaxisParams(CommonParams):
 class SurgeCastParams(CommonParams):
     """Silkworm moth surge-cast."""
 
-    surge_persist_s: float = _p(2.0, 0.0, 30.0, "keep surging this long after the last detection [s]")
+    surge_persist_s: float = _p(3.0, 0.0, 30.0, "keep surging this long after the last detection [s]")
     verify_speed_m_s: float = _p(1.0, 0.2, 10.0, "ground speed of the verification sweep [m/s]: slow, because "
                                  "what a verification waits for is time (a meandering plume from further "
                                  "upwind swings back within seconds), not distance (zig-zag keeps 2.5: "
                                  "slow sweeps cost it success, 90 -> 76 %)")
-    overshoot_m: float = _p(3.0, 0.0, 50.0, "how far upwind of the most-upwind detection the vehicle must "
-                            "have searched before declaring [m]")
     cast_half_width_m: float = _p(4.0, 0.5, 100.0, "first cast half-amplitude, crosswind [m]")
     cast_growth: float = _p(1.5, 1.0, 5.0, "cast amplitude factor after each full sweep")
     cast_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest cast half-amplitude [m]")
-    cast_drift_m_s: float = _p(0.1, 0.0, 5.0, "downwind drift of the cast anchor [m/s]")
-    verify_max_half_width_m: float = _p(6.0, 0.5, 100.0, "largest verification half-width [m] (the surge keeps "
-                                        "the vehicle on the centreline, so a verification that has to reach far "
-                                        "aside is one in the meandering far field: casting finds that plume "
-                                        "again at less cost)")
+    cast_drift_m_s: float = _p(0.3, 0.0, 5.0, "downwind drift of the cast anchor [m/s]")
     cast_back_m: float = _p(1.0, -20.0, 50.0, "cast anchor: this far downwind of the last detection [m]")
     lost_s: float = _p(1.5, 0.1, 60.0, "time without detection after which the plume counts as lost (and, "
                        "upwind of the most-upwind hit, the verification sweep starts) [s]")
