@@ -484,6 +484,11 @@ class WindEstimator:
         return True
 
     @property
+    def span_s(self) -> float:
+        """Seconds of data the filter has run over since its cold start (0 before it starts)."""
+        return 0.0 if self._t_first is None or self.t is None else float(self.t - self._t_first)
+
+    @property
     def ready(self) -> bool:
         """True once attitude and rotor speeds have been received (the model needs both)."""
         return self._R is not None and self._w_rot is not None

@@ -220,8 +220,11 @@ class MavsdkMission:
         if cfg.wind == "estimated":
             from sitl.vehicle import load_vehicle
 
-            self.estimator = WindEstimator(load_vehicle(cfg.vehicle))
+            self._vehicle_params = load_vehicle(cfg.vehicle)
+            self.estimator = WindEstimator(self._vehicle_params)
             self.adapter = MavlinkWindAdapter(self.estimator)
+        self._est_fed = False  # the estimator has had samples since its (re)start
+        self._est_grounded = False  # samples withheld since (the vehicle on the ground)
         self.est_watch = EstimatorWatch()
         self._unsubscribe: list[tuple[Any, Any]] = []
         self._imu_claimed = ""
@@ -316,6 +319,19 @@ class MavsdkMission:
         samples still to come, and those would be rejected as older than the filter.
         """
         pend = self._pending_vel
+        if self.state.landed == LANDED_ON_GROUND:
+            # Paused on the ground (as ``windseek estimator`` and the in-process runner are):
+            # ground contact is not in the force model, and the uncalibrated preset's force-scale
+            # state would absorb it. The filter cold-starts at lift-off (a filter that already
+            # flew is replaced then, not at touchdown, so the final figures are the flight's).
+            self._est_grounded = True
+            pend.clear()
+            return
+        if self._est_grounded and self._est_fed:
+            self.estimator = WindEstimator(self._vehicle_params)
+            self.adapter = MavlinkWindAdapter(self.estimator)
+        self._est_grounded = False
+        self._est_fed = True
         if name == "LOCAL_POSITION_NED":
             pend.append(_Msg(name, f))
         else:
@@ -718,7 +734,8 @@ class MavsdkMission:
             est = self.estimator
             res.wind_ned = [round(float(v), 3) for v in est.wind_ned]
             res.estimator = {"accepted": dict(est.accepted), "rejected": dict(est.rejected),
-                             "imu_message": self._imu_claimed}  # fmt: skip
+                             "imu_message": self._imu_claimed,
+                             "span_s": est.span_s}  # fmt: skip
         elif self.state.wind_cov is not None:
             res.wind_ned = [round(float(v), 3) for v in self.state.wind_cov[1]]
 
