@@ -245,3 +245,28 @@ def test_cli_search_bad_param_file(tmp_path, capsys):
     rc = cli_main(["search", "open-field", "--strategy", "zigzag", "--params", str(f), "--trials", "1"])
     assert rc == 2
     assert "strategy.speed_m_s = -1.0" in capsys.readouterr().err
+
+
+def test_estimated_wind_is_paused_on_the_ground_and_cold_starts_at_lift_off():
+    """Ground contact is not in the force model: the in-process estimator takes no sample while
+    the vehicle stands (armed, idle), starts at lift-off and then runs on every sample."""
+    sim = Simulation(load_scenario("open-field"), seed=3, autostart_route=False, record_truth=True)
+    ws = EstimatedWind(sim, params_from_table("surge-cast", None))
+    ok, why = sim.fc.arm()
+    assert ok, why
+    for k in range(1, 31):  # 3 s armed on the ground
+        sim.run_until(0.1 * k)
+        ws.update(sim.drain())
+    assert sim.fc.on_ground and ws.estimator.t is None
+    sim.fc.takeoff(3.0)
+    t_lift = math.nan
+    for k in range(31, 151):
+        sim.run_until(0.1 * k)
+        ws.update(sim.drain())
+        if math.isnan(t_lift) and not sim.fc.on_ground:
+            t_lift = sim.t
+    assert 3.0 < t_lift < 8.0
+    est = ws.estimator
+    assert est.t == pytest.approx(15.0, abs=0.02)
+    assert est.span_s == pytest.approx(15.0 - t_lift, abs=0.15)
+    assert est.accepted["imu"] >= 0.95 * 250 * est.span_s and ws.restarts == 0

@@ -23,7 +23,8 @@ MAVSDK ground-station identity): the strategy state on every change as STATUSTEX
 and the declaration once as NAMED_VALUE_FLOAT ``SRC_N``, ``SRC_E``, ``SRC_D`` (m, NED, local
 frame), then ``SRC_CONF`` (0..1). ``windseek sitl --rrd/--exit-summary`` and any tlog record them.
 
-Wind modes: ``estimated`` (the UKF run live on those messages, default), ``mavlink`` (WIND_COV
+Wind modes: ``estimated`` (the UKF run live on those messages from lift-off: paused while
+EXTENDED_SYS_STATE says ON_GROUND; default), ``mavlink`` (WIND_COV
 from the autopilot, e.g. PX4's own wind estimate or a relayed external ``windseek`` estimator),
 ``none`` (pure chemotaxis). There is no oracle over MAVLink.
 
