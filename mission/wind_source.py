@@ -121,6 +121,7 @@ class EstimatedWind:
         self._config = config
         self.estimator = WindEstimator(self._model, config)
         self._fed = False  # the estimator has had samples since its (re)start
+        self._grounded = False  # samples withheld since (the vehicle on the ground)
         self.restarts = 0
         self.ahrs = ahrs or AhrsErrorModel()
         self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xA4C5]))
@@ -164,16 +165,18 @@ class EstimatedWind:
             # contact forces are not in the force model, and the uncalibrated preset's force-scale
             # state, released 1.5 s after the first sample, would absorb them (seen: scale 0.96
             # +- 0.002 with the exact model, wind speed 7 m/s for 5). The filter cold-starts at
-            # lift-off; a later touchdown and take-off restart it.
+            # lift-off; a filter that already flew is replaced at the next lift-off (not at
+            # touchdown, so its figures stay readable after landing), as the MAVSDK runner does.
             self._pending_gnss.clear()
             self._acc_sum[:] = 0.0
             self._gyr_sum[:] = 0.0
             self._n_sum = 0
-            if self._fed:
-                self.estimator = WindEstimator(self._model, self._config)
-                self._fed = False
-                self.restarts += 1
+            self._grounded = True
             return self.upwind.make(self.estimator.wind_ned, self.estimator.wind_cov)
+        if self._grounded and self._fed:
+            self.estimator = WindEstimator(self._model, self._config)
+            self.restarts += 1
+        self._grounded = False
         self._fed = True
         est = self.estimator
         ei = 0

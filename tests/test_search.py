@@ -270,3 +270,21 @@ def test_estimated_wind_is_paused_on_the_ground_and_cold_starts_at_lift_off():
     assert est.t == pytest.approx(15.0, abs=0.02)
     assert est.span_s == pytest.approx(15.0 - t_lift, abs=0.15)
     assert est.accepted["imu"] >= 0.95 * 250 * est.span_s and ws.restarts == 0
+    # Touchdown pauses it again and keeps the flight's filter; the next lift-off replaces it.
+    sim.fc.land()
+    k = 150
+    while not sim.fc.on_ground and k < 400:
+        k += 1
+        sim.run_until(0.1 * k)
+        ws.update(sim.drain())
+    assert sim.fc.on_ground and ws.estimator is est and ws.restarts == 0
+    t_down = est.t
+    for k in range(k + 1, k + 11):
+        sim.run_until(0.1 * k)
+        ws.update(sim.drain())
+    assert est.t == t_down
+    sim.fc.takeoff(3.0)
+    for k in range(k + 1, k + 101):
+        sim.run_until(0.1 * k)
+        ws.update(sim.drain())
+    assert ws.restarts == 1 and ws.estimator is not est and 0.0 < ws.estimator.span_s < 10.0
