@@ -14,6 +14,7 @@ import pytest
 
 from mission.runners.inprocess import run_trial
 from mission.strategies import Observation, ParamError, Strategy, WindInfo, make_strategy, params_from_table
+from mission.strategies.common import Sweep, crosswind
 from mission.strategies.params import SurgeCastParams, load_params
 from mission.wind_source import EstimatedWind, UpwindFilter
 from sitl.scenario import load_scenario
@@ -124,6 +125,24 @@ def test_surge_then_cast_crosswind():
         sp = s.update(Observation(0.1 * k, pos, np.zeros(3), 0.0, False, True, wind_north()))
     assert sp.state == "cast"
     assert abs(sp.velocity_ned[1]) > abs(sp.velocity_ned[0])  # crosswind (east-west)
+
+
+def test_sweep_turns_about_its_reference_point_with_the_wind():
+    """A sweep 60 m from the start, after the upwind axis turns 20 deg: it keeps sweeping
+    across the (turned) wind through its reference point, not along a line shifted 20 m
+    sideways (offsets along the current axis are taken from the reference point, not the start)."""
+    ref = np.array([60.0, 0.0])
+    sw = Sweep(0.0, ref, 0.0, 4.0, 1.0, 4.0, 1.0, 0.0)
+    a = math.radians(20.0)
+    u = np.array([math.cos(a), math.sin(a)])
+    n = crosswind(u)
+    v = sw.velocity(1.0, ref.copy(), u, n, 2.0)
+    assert abs(float(v @ u)) < 1e-9 and float(v @ n) == pytest.approx(2.0)  # at the reference: crosswind
+    # 3 m to the side (inside the 4 m half-width) it keeps going; past 4 m it turns back.
+    assert float(sw.velocity(1.1, ref + 3.0 * n, u, n, 2.0) @ n) > 0.0
+    assert float(sw.velocity(1.2, ref + 4.5 * n, u, n, 2.0) @ n) < 0.0
+    # 2 m downwind of its line it steers back upwind.
+    assert float(sw.velocity(1.3, ref - 2.0 * u, u, n, 2.0) @ u) > 1.0
 
 
 @pytest.mark.parametrize("name", ["surge-cast", "zigzag", "anemotaxis"])
@@ -279,12 +298,14 @@ def test_estimated_wind_is_paused_on_the_ground_and_cold_starts_at_lift_off():
         ws.update(sim.drain())
     assert sim.fc.on_ground and ws.estimator is est and ws.restarts == 0
     t_down = est.t
-    for k in range(k + 1, k + 11):
+    k_down = k
+    for k in range(k_down + 1, k_down + 11):
         sim.run_until(0.1 * k)
         ws.update(sim.drain())
     assert est.t == t_down
     sim.fc.takeoff(3.0)
-    for k in range(k + 1, k + 101):
+    k_up = k
+    for k in range(k_up + 1, k_up + 101):
         sim.run_until(0.1 * k)
         ws.update(sim.drain())
     assert ws.restarts == 1 and ws.estimator is not est and 0.0 < ws.estimator.span_s < 10.0

@@ -216,22 +216,23 @@ class UpwindAxis:
 
 
 class Sweep:
-    """Crosswind sweeps of growing half-width about the plume centreline, anchored at the last
-    detection: the moth's cast and the zig-zag's lost search.
+    """Crosswind sweeps of growing half-width about a world reference point: the moth's cast,
+    the zig-zag's lost search and the verification sweep.
 
-    The along-wind anchor starts ``back_m`` downwind of the last detection (the vehicle has
-    usually run past it: surge persistence and sensor lag) and then drifts downwind at
-    ``drift`` m/s -- the plume is downwind of its source, so backing off widens the
-    cross-section swept. Returning to the last hit is what turns "lost at the source" into a
-    re-detection and a second loss at the same place (the confirmation rule). Coordinates:
-    crosswind ``c`` (m along n) and along-wind ``a`` (m along u).
+    The sweep is centred on ``ref`` (north, east, m): crosswind legs to ``half`` on either
+    side of it, the along-wind target ``along0`` m upwind of it (negative: downwind), drifting
+    downwind at ``drift`` m/s -- the plume is downwind of its source, so backing off widens the
+    cross-section swept. Offsets are taken along the *current* axis (``u``, ``n``), so when
+    the wind direction turns the pattern turns about ``ref``, as the plume near it does. (Why
+    not scalar coordinates about the start: the upwind axis of the estimated wind swings by
+    tens of degrees, and 60 m from the start a 10 deg turn would move such a sweep 10 m.)
     """
 
-    def __init__(self, t0: float, center: float, anchor: float, half_width: float, growth: float,
+    def __init__(self, t0: float, ref_ne: np.ndarray, along0: float, half_width: float, growth: float,
                  max_half_width: float, direction: float, drift: float) -> None:
         self.t0 = t0
-        self.center = center
-        self.anchor = anchor
+        self.ref = np.asarray(ref_ne, dtype=float).copy()
+        self.along0 = along0
         self.half = half_width
         self.growth = growth
         self.max_half = max_half_width
@@ -241,15 +242,16 @@ class Sweep:
 
     def velocity(self, t: float, pos: np.ndarray, u: np.ndarray, n: np.ndarray, speed: float) -> np.ndarray:
         """Horizontal velocity (north, east), m/s; flips at each end and grows the width."""
-        c_now = float(pos @ n)
-        a_now = float(pos @ u)
-        target = self.center + self.dir * self.half
+        d = pos - self.ref
+        c_now = float(d @ n)
+        a_now = float(d @ u)
+        target = self.dir * self.half
         if (target - c_now) * self.dir <= 0.0:
             self.dir = -self.dir
             self.n_legs += 1
             if self.n_legs % 2 == 0:  # a full sweep (both sides) without finding anything
                 self.half = min(self.half * self.growth, self.max_half)
-        a_target = self.anchor - self.drift * (t - self.t0)
+        a_target = self.along0 - self.drift * (t - self.t0)
         v_along = float(np.clip(0.8 * (a_target - a_now), -0.8 * speed, 0.8 * speed))
         v_cross = math.sqrt(max(speed * speed - v_along * v_along, 0.0))
         return self.dir * v_cross * n + v_along * u
@@ -257,14 +259,19 @@ class Sweep:
     @classmethod
     def start(cls, t: float, pos: np.ndarray, u: np.ndarray, n: np.ndarray, memory: PlumeMemory,
               half_width: float, growth: float, max_half_width: float, drift: float, back_m: float) -> Sweep:
-        """A sweep from the current situation: centred on the centreline (or here), anchored
+        """A lost search from the current situation: centred on the plume centreline (or here),
         ``back_m`` downwind of the last detection (or here), first toward the centreline."""
         c_now = float(pos @ n)
         center = memory.centerline(t, n)
         center = c_now if center is None else center
-        anchor = float(pos @ u) if not memory.det_pos else float(memory.det_pos[-1] @ u) - back_m
+        if memory.det_pos:
+            ref = float(memory.det_pos[-1] @ u) * u + center * n
+            along0 = -back_m
+        else:
+            ref = pos.copy()
+            along0 = 0.0
         direction = 1.0 if center >= c_now else -1.0
-        return cls(t, center, anchor, half_width, growth, max_half_width, direction, drift)
+        return cls(t, ref, along0, half_width, growth, max_half_width, direction, drift)
 
 
 class BaseStrategy:
@@ -378,10 +385,8 @@ class BaseStrategy:
         n_before = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
         half *= p.verify_growth**n_before
         half = min(half + math.tan(min(sigma_rad, math.radians(45.0))) * p.verify_offset_m, p.verify_max_half_width_m)
-        center = float(cand @ n)
-        c_now = float(pos_ne @ n)
-        direction = 1.0 if center >= c_now else -1.0
-        self.verify = Sweep(t, center, float(cand @ u) + p.verify_offset_m, half, 1.0, half, direction, 0.0)
+        direction = 1.0 if float((cand - pos_ne) @ n) >= 0.0 else -1.0
+        self.verify = Sweep(t, cand, p.verify_offset_m, half, 1.0, half, direction, 0.0)
         self.verify_cand = cand.copy()
         self._verify_armed = False
 
