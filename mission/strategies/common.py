@@ -297,7 +297,7 @@ class BaseStrategy:
         self.t_over = math.nan  # time the descent point was reached
         self.verify: Sweep | None = None  # the verification sweep upwind of a candidate, when active
         self.verify_cand: np.ndarray | None = None
-        self.verified: list[float] = []  # upwind coordinate (m along u) of every verified end
+        self.verified: list[np.ndarray] = []  # candidate (north, east, m) of every verified end
         self.n_verify_aborted = 0
         self.verify_spread = 0.0
         self._verify_armed = True
@@ -345,13 +345,18 @@ class BaseStrategy:
         # Both sides covered without a single hit: one verified end at this candidate.
         cand = self.verify_cand
         self.verify = None
-        c_up = float(cand @ u)
-        self.verified.append(c_up)
-        n_same = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
+        self.verified.append(cand.copy())
+        n_same = self._n_verified_at(cand, u)
         if n_same >= self._confirmations_needed() and self._supported(cand):
             self._declare(obs.t, cand, repeat=n_same >= 2)
         self._after_verify()
         return None
+
+    def _n_verified_at(self, cand: np.ndarray, u: np.ndarray) -> int:
+        """Verified ends at the same plume end as ``cand``: within ``REPEAT_TOL_M`` of it along
+        the current upwind axis (compared as differences, so a turning axis does not move
+        candidates tens of metres from the start)."""
+        return sum(abs(float((cand - c) @ u)) <= REPEAT_TOL_M for c in self.verified)
 
     def _supported(self, cand: np.ndarray) -> bool:
         """Enough hits within 5 m of ``cand`` (``min_hits_near``): the plume just downwind of a
@@ -381,8 +386,7 @@ class BaseStrategy:
         # Each earlier verified end at the same place widens the next sweep (a moth casts wider
         # and wider): at a source nothing is found however wide; a far-field plume that has
         # swung further aside than the first sweep reached is found by a later one.
-        c_up = float(cand @ u)
-        n_before = sum(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified)
+        n_before = self._n_verified_at(cand, u)
         half *= p.verify_growth**n_before
         half = min(half + math.tan(min(sigma_rad, math.radians(45.0))) * p.verify_offset_m, p.verify_max_half_width_m)
         direction = 1.0 if float((cand - pos_ne) @ n) >= 0.0 else -1.0
@@ -399,8 +403,7 @@ class BaseStrategy:
         cand = m.most_upwind(u)
         if cand is None:
             return False
-        c_up = float(cand @ u)
-        if any(abs(c_up - c) <= REPEAT_TOL_M for c in self.verified) and self._supported(cand):
+        if self._n_verified_at(cand, u) > 0 and self._supported(cand):
             return self._declare(t, cand, repeat=False)
         return False
 
