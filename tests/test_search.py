@@ -206,6 +206,34 @@ def test_far_field_end_with_few_hits_is_not_declared():
     assert states[-1] == "cast"
 
 
+def test_burst_met_in_passing_is_not_declared():
+    """A far-field burst of puffs: 30 strong hits at one place in 3 s, then nothing. The
+    verification finds nothing and there are enough hits near the candidate, but the hits do not
+    reach ``min_followed_m`` downwind of it (no plume was followed to it): nothing is declared,
+    even with one verified end needed. With the rule off, the same record is declared."""
+    def run(min_followed: float) -> list[str]:
+        s = make_strategy("surge-cast")
+        p = params_from_table("surge-cast", {"confirmations": 1, "min_followed_m": min_followed})
+        s.reset(np.zeros(3), p, seed=3)
+        pos = np.array([10.0, 0.0, -p.altitude_m])
+        states = []
+        for k in range(1200):
+            c = 2.0 if k < 30 else 0.0
+            sp = s.update(Observation(t=k * 0.1, position_ned=pos.copy(), velocity_ned=np.zeros(3),
+                                      chem_mg_m3=c + 0.1 * (k % 2), detected=c > 0.0, chem_new=True,
+                                      wind=wind_north()))
+            states.append(sp.state)
+            if sp.declared_source_ned is not None:
+                break
+            if k >= 30:  # hovered through the burst, then flies as told
+                pos[0:2] += sp.velocity_ned[0:2] * 0.1
+        return states
+
+    held = run(10.0)
+    assert "verify" in held and "descend" not in held
+    assert "descend" in run(0.0)
+
+
 def test_surge_cast_without_wind_declares_something():
     """`none`: the axis comes from the concentration gradient; the strategy must run and stop
     (the quality is what the benchmark table measures)."""

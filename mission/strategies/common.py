@@ -347,7 +347,7 @@ class BaseStrategy:
         self.verify = None
         self.verified.append(cand.copy())
         n_same = self._n_verified_at(cand, u)
-        if n_same >= self._confirmations_needed() and self._supported(cand):
+        if n_same >= self._confirmations_needed() and self._supported(cand, u):
             self._declare(obs.t, cand, repeat=n_same >= 2)
         self._after_verify()
         return None
@@ -358,11 +358,17 @@ class BaseStrategy:
         candidates tens of metres from the start)."""
         return sum(abs(float((cand - c) @ u)) <= REPEAT_TOL_M for c in self.verified)
 
-    def _supported(self, cand: np.ndarray) -> bool:
+    def _supported(self, cand: np.ndarray, u: np.ndarray) -> bool:
         """Enough hits within 5 m of ``cand`` (``min_hits_near``): the plume just downwind of a
         source is continuous, so the surges and re-acquisitions there collect many hits; a
-        far-field "end" (a gap, a meander, the plume above or below the sensor) has few."""
-        return self.memory.n_near(cand, 5.0) >= self.p.min_hits_near
+        far-field "end" (a gap, a meander, the plume above or below the sensor) has few. And
+        the hits reach at least ``min_followed_m`` downwind of ``cand``: a source is the upwind
+        end of a plume that was followed, not a burst of far-field puffs met in passing (one
+        such burst gives 20-30 hits within 5 m in 3-4 s)."""
+        m = self.memory
+        if m.n_near(cand, 5.0) < self.p.min_hits_near:
+            return False
+        return float(np.max((cand - np.asarray(m.det_pos)) @ u)) >= self.p.min_followed_m
 
     def _confirmations_needed(self) -> int:
         """Verified ends at the same place needed to declare (``confirmations``)."""
@@ -403,7 +409,7 @@ class BaseStrategy:
         cand = m.most_upwind(u)
         if cand is None:
             return False
-        if self._n_verified_at(cand, u) > 0 and self._supported(cand):
+        if self._n_verified_at(cand, u) > 0 and self._supported(cand, u):
             return self._declare(t, cand, repeat=False)
         return False
 

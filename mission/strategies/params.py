@@ -70,6 +70,8 @@ class CommonParams:
     verify_growth: float = _p(1.0, 1.0, 5.0, "half-width factor of each further verification at the same place")
     min_hits_near: int = _p(12, 0, 1000, "hits within 5 m of the most-upwind hit needed before it can be declared "
                             "(the plume just downwind of a source is continuous)")
+    min_followed_m: float = _p(10.0, 0.0, 1000.0, "the hits must reach at least this far downwind of the declared "
+                               "point (the plume leading to it was followed) [m]")
     verify_max_half_width_m: float = _p(12.0, 0.5, 100.0, "largest verification half-width [m]")
     memory_s: float = _p(20.0, 1.0, 600.0, "time window of detections used for the plume centreline [s]")
     centerline_gain: float = _p(0.4, 0.0, 5.0, "lateral velocity per metre off the estimated centreline [1/s]")
@@ -95,6 +97,10 @@ class SurgeCastParams(CommonParams):
     """Silkworm moth surge-cast."""
 
     surge_persist_s: float = _p(3.0, 0.0, 30.0, "keep surging this long after the last detection [s]")
+    confirmations: int = _p(1, 1, 10, "verified ends at the same place needed to declare: one for surge-cast (its "
+                            "surges follow the plume to the end and its slow verification waits out a meander; a "
+                            "second costs ~0.6x the start distance of path; in high turbulence 2 is safer, see "
+                            "benchmarks/search_tradeoff.py)")
     verify_speed_m_s: float = _p(1.0, 0.2, 10.0, "ground speed of the verification sweep [m/s]: slow, because "
                                  "what a verification waits for is time (a meandering plume from further "
                                  "upwind swings back within seconds), not distance (zig-zag keeps 2.5: "
