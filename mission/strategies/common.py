@@ -302,6 +302,8 @@ class BaseStrategy:
         self.verify_spread = 0.0
         self._verify_armed = True
         self.carrot: np.ndarray | None = None
+        self.sweep: Sweep | None = None  # the lost search, when active
+        self.mode = "acquire"
         self._reset()
 
     def _reset(self) -> None:
@@ -375,7 +377,20 @@ class BaseStrategy:
         return int(self.p.confirmations)
 
     def _after_verify(self) -> None:
-        """Hook: a verification found nothing (the strategy restarts its lost search)."""
+        """A verification found nothing: the lost search restarts from the last hit
+        (re-acquire, then verify again)."""
+        self.sweep = None
+
+    def _lost_search(self, obs: Observation, u: np.ndarray, n: np.ndarray, lost_state: str, half_width: float,
+                     growth: float, max_half_width: float, drift: float, back_m: float) -> tuple[np.ndarray, str]:
+        """Velocity (north, east, m/s) and state of the lost search: crosswind sweeps about
+        the plume centreline (see :class:`Sweep`), started at the first call after the plume
+        was lost; the state is ``lost_state`` after a detection, ``acquire`` before any."""
+        pos = obs.position_ned[0:2]
+        if self.sweep is None:
+            self.sweep = Sweep.start(obs.t, pos, u, n, self.memory, half_width, growth, max_half_width, drift, back_m)
+            self.mode = lost_state if self.memory.n_detect > 0 else "acquire"
+        return self.sweep.velocity(obs.t, pos, u, n, self.p.speed_m_s), self.mode
 
     def _start_verify(self, t: float, pos_ne: np.ndarray, u: np.ndarray, n: np.ndarray, cand: np.ndarray,
                       sigma_rad: float) -> None:

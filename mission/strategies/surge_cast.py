@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from mission.strategies.base import Observation
-from mission.strategies.common import BaseStrategy, Sweep
+from mission.strategies.common import BaseStrategy
 from mission.strategies.params import SurgeCastParams
 
 
@@ -38,11 +38,7 @@ class SurgeCast(BaseStrategy):
     p: SurgeCastParams
 
     def _reset(self) -> None:
-        self.sweep: Sweep | None = None
         self.mode = "acquire"
-
-    def _after_verify(self) -> None:
-        self.sweep = None  # restart the lost search from the last hit (re-acquire, then verify again)
 
     def _search(self, obs: Observation, u: np.ndarray, n: np.ndarray, new_det: bool, dt: float
                 ) -> tuple[np.ndarray, str]:
@@ -58,8 +54,5 @@ class SurgeCast(BaseStrategy):
             lat = float(np.clip(lat, -0.7 * p.speed_m_s, 0.7 * p.speed_m_s))
             fwd = math.sqrt(p.speed_m_s**2 - lat * lat)
             return fwd * u + lat * n, "surge"
-        if self.sweep is None:
-            self.sweep = Sweep.start(obs.t, pos, u, n, m, p.cast_half_width_m, p.cast_growth,
-                                     p.cast_max_half_width_m, p.cast_drift_m_s, p.cast_back_m)
-            self.mode = "cast" if m.n_detect > 0 else "acquire"
-        return self.sweep.velocity(obs.t, pos, u, n, p.speed_m_s), self.mode
+        return self._lost_search(obs, u, n, "cast", p.cast_half_width_m, p.cast_growth, p.cast_max_half_width_m,
+                                 p.cast_drift_m_s, p.cast_back_m)

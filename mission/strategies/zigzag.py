@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from mission.strategies.base import Observation
-from mission.strategies.common import BaseStrategy, Sweep
+from mission.strategies.common import BaseStrategy
 from mission.strategies.params import ZigzagParams
 
 
@@ -40,11 +40,7 @@ class Zigzag(BaseStrategy):
     def _reset(self) -> None:
         self.side = 1.0  # +1: legs toward +n (right of upwind), -1: left
         self.leg_hit = False
-        self.sweep: Sweep | None = None
         self.mode = "acquire"
-
-    def _after_verify(self) -> None:
-        self.sweep = None  # restart the lost search from the last hit (re-acquire, then verify again)
 
     def _search(self, obs: Observation, u: np.ndarray, n: np.ndarray, new_det: bool, dt: float
                 ) -> tuple[np.ndarray, str]:
@@ -70,8 +66,5 @@ class Zigzag(BaseStrategy):
                 self.leg_hit = False
             a = math.radians(p.angle_deg)
             return p.speed_m_s * (math.cos(a) * u + self.side * math.sin(a) * n), "zig"
-        if self.sweep is None:
-            self.sweep = Sweep.start(obs.t, pos, u, n, m, p.lost_half_width_m, p.lost_growth,
-                                     p.lost_max_half_width_m, p.lost_drift_m_s, p.lost_back_m)
-            self.mode = "lost" if m.n_detect > 0 else "acquire"
-        return self.sweep.velocity(obs.t, pos, u, n, p.speed_m_s), self.mode
+        return self._lost_search(obs, u, n, "lost", p.lost_half_width_m, p.lost_growth, p.lost_max_half_width_m,
+                                 p.lost_drift_m_s, p.lost_back_m)
