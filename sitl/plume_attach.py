@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Any
 
 from sitl.chem_sensor import ChemicalSensor, ChemReading, ChemSensorConfig
 from sitl.plume import PLUME_MODELS, STABILITY_CLASSES, GaussianPlume, PlumeConfig, PuffPlume, Source, make_plume
-from sitl.scenario import ScenarioError
+from sitl.scenario import ScenarioError, _num, _table, _vec3
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
@@ -95,32 +95,6 @@ class PlumeSetup:
 
 
 # --------------------------------------------------------------------------- parsing
-def _num(name: str, value: Any, lo: float, hi: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ScenarioError(f"{name}: expected a number in [{lo}, {hi}], got {value!r}")
-    v = float(value)
-    if not (math.isfinite(v) and lo <= v <= hi):
-        raise ScenarioError(f"{name} = {value!r}: allowed range is [{lo}, {hi}]")
-    return v
-
-
-def _vec3(name: str, value: Any) -> tuple[float, float, float]:
-    if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise ScenarioError(f"{name}: expected 3 numbers [north, east, down] (m, NED), got {value!r}")
-    return tuple(_num(f"{name}[{i}]", v, -1e5, 1e5) for i, v in enumerate(value))  # type: ignore[return-value]
-
-
-def _table(name: str, value: Any, allowed: frozenset[str]) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{name}: expected a table, got {value!r}")
-    unknown = set(value) - allowed
-    if unknown:
-        raise ScenarioError(
-            f"{name}: unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}"
-        )
-    return value
-
-
 def _choice(name: str, value: Any, allowed: tuple[str, ...], hint: str) -> str:
     if value not in allowed:
         raise ScenarioError(f"{name} = {value!r}: allowed values are {hint}")
@@ -167,7 +141,7 @@ def parse_plume_table(tbl: Any, mode_rate_hz: float = 50.0) -> PlumeSetup:
     Raises ``sitl.scenario.ScenarioError`` naming the field (``plume.<key>``) and the
     allowed values.
     """
-    tbl = _table("[plume]", tbl, PLUME_KEYS)
+    tbl = _table("plume", tbl, PLUME_KEYS)
     model = _choice("plume.model", tbl.get("model", "puff"), PLUME_MODELS, ", ".join(repr(m) for m in PLUME_MODELS))
     stability = _choice(
         "plume.stability", tbl.get("stability", "D"), STABILITY_CLASSES,
@@ -206,7 +180,7 @@ def parse_plume_table(tbl: Any, mode_rate_hz: float = 50.0) -> PlumeSetup:
     if errors:  # what the per-key checks above cannot see (e.g. domain min >= max)
         raise ScenarioError("; ".join(f"plume.{e}" for e in errors))
 
-    raw_sensor = _table("[plume.sensor]", tbl.get("sensor", {}), SENSOR_KEYS)
+    raw_sensor = _table("plume.sensor", tbl.get("sensor", {}), SENSOR_KEYS)
     kw: dict[str, float] = {}
     for key, value in raw_sensor.items():
         if key == "sample_rate_hz":

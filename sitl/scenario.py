@@ -117,6 +117,8 @@ class Scenario:
 
 
 # --------------------------------------------------------------------------- parsing helpers
+# Shared with sitl.plume_attach (the [plume] table): every config error names the field and
+# the allowed range the same way.
 def _num(name: str, value: Any, lo: float, hi: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ScenarioError(f"{name}: expected a number in [{lo}, {hi}], got {value!r}")
@@ -132,7 +134,7 @@ def _vec3(name: str, value: Any, lim: float = 1e5) -> tuple[float, float, float]
     return tuple(_num(f"{name}[{i}]", v, -lim, lim) for i, v in enumerate(value))  # type: ignore[return-value]
 
 
-def _table(name: str, value: Any, allowed: set[str]) -> dict[str, Any]:
+def _table(name: str, value: Any, allowed: set[str] | frozenset[str]) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise ScenarioError(f"[{name}]: expected a table, got {value!r}")
     unknown = set(value) - allowed
