@@ -5,14 +5,16 @@ Frames and units: NED, SI; headings in rad (0 = north, clockwise). Horizontal ve
 (north, east). ``u`` is the unit upwind vector (toward where the wind comes from), ``n`` the
 unit crosswind vector 90 deg to its right (u rotated clockwise: n = (-u_e, u_n)).
 
-Declaration rule (all strategies): the candidate source is the most-upwind detection (along
-the current upwind axis), each detection placed where the vehicle was ``sensor_lag_s``
-before the reading (the sensor's first-order lag would otherwise push the candidate upwind).
-The plume "ends" at the candidate when the vehicle has searched at least ``overshoot_m``
-upwind of it and then either (a) has detected nothing for ``declare_after_s``, or (b) lost
-the plume there a second time (re-found it downwind, surged, overshot the same candidate
-again, within ``REPEAT_TOL_M``) and has detected nothing for ``lost_s``. (b) stops the
-surge -> overshoot -> drift back -> surge loop that a source produces.
+Declaration rule (all strategies; details in ``mission/README.md``): the candidate source is
+the most-upwind hit (along the current upwind axis), each hit placed where the vehicle was
+``sensor_lag_s`` before the reading (the sensor's first-order lag would otherwise push the
+candidate upwind). When the plume has been lost for ``lost_s`` with the vehicle at least
+``overshoot_m`` upwind of the candidate, a crosswind verification sweep flies upwind of it; a
+hit interrupts it (the plume goes on), a sweep that finds nothing is a *verified end*. The
+candidate is declared after ``confirmations`` verified ends at the same place if it is
+supported: ``min_hits_near`` hits within 5 m and hits reaching ``min_followed_m`` downwind of
+it (a source ends a plume that was followed). Fallback: lost for ``declare_after_s`` after a
+verified end at a supported candidate.
 """
 
 from __future__ import annotations
