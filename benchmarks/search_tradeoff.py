@@ -46,7 +46,8 @@ def main() -> None:
                                     params_path=path, label=f"{scenario} / {name} / {wind}")
                     rows.append((scenario, name, wind, summarize(res)))
     print(f"\nsurge-cast, seeds {args.seed}..{args.seed + args.trials - 1}")
-    print(f"{'scenario':16s} {'variant':28s} {'wind':9s} {'success':>8s} {'path/start':>10s} {'t median':>9s}  failures")
+    print(f"{'scenario':16s} {'variant':28s} {'wind':9s} {'success':>8s} {'path/start':>10s} "
+          f"{'t median':>9s}  failures")
     for scenario, name, wind, s in rows:
         fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "-"
         print(f"{scenario:16s} {name:28s} {wind:9s} {100 * s['success_rate']:7.1f}% {s['path_ratio_median']:10.2f} "

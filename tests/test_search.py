@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -93,6 +94,17 @@ def test_unknown_strategy():
 
 
 # ---------------------------------------------------------------- wind direction
+@pytest.mark.parametrize("path", sorted((Path(__file__).parent.parent / "mission" / "strategy_files").glob("*.toml")),
+                         ids=lambda p: p.name)
+def test_shipped_strategy_files_load(path):
+    """Every strategy file shipped in mission/strategy_files/ loads for every strategy, and
+    changes something from the defaults (a file that changes nothing is a stale file)."""
+    changed = False
+    for name in ("anemotaxis", "surge-cast", "zigzag"):
+        changed |= load_params(name, path) != load_params(name)
+    assert changed
+
+
 @pytest.mark.parametrize(("wind", "upwind_deg"), [([-5.0, 0.0, 0.0], 0.0), ([0.0, -5.0, 0.0], 90.0),
                                                   ([5.0, 0.0, 0.0], 180.0), ([0.0, 5.0, 0.0], 270.0)])
 def test_upwind_heading_is_the_from_direction(wind, upwind_deg):
