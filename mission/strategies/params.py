@@ -96,8 +96,6 @@ class AnemotaxisParams(CommonParams):
 class SurgeCastParams(CommonParams):
     """Silkworm moth surge-cast."""
 
-    speed_m_s: float = _p(2.0, 0.2, 10.0, "ground speed while surging and casting [m/s] (2.0: the same success as 2.5 "
-                          "on the development seeds at ~0.25x less path; 1.5 and 3.5 lose success)")
     surge_persist_s: float = _p(3.0, 0.0, 30.0, "keep surging this long after the last detection [s]")
     confirmations: int = _p(1, 1, 10, "verified ends at the same place needed to declare: one for surge-cast (its "
                             "surges follow the plume to the end and its slow verification waits out a meander; a "
