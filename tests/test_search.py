@@ -133,10 +133,14 @@ def test_surge_then_cast_crosswind():
     pos = np.array([10.0, 0.0, -3.0])
     sp = s.update(Observation(0.0, pos, np.zeros(3), 1.0, True, True, wind_north()))
     assert sp.state == "surge" and sp.velocity_ned[0] > 0.9 * p.speed_m_s  # upwind = north
-    for k in range(1, 60):  # lost: no detection for 6 s
+    first_cast = None
+    for k in range(1, 60):  # lost: no detection for 6 s (the vehicle held in place)
         sp = s.update(Observation(0.1 * k, pos, np.zeros(3), 0.0, False, True, wind_north()))
-    assert sp.state == "cast"
-    assert abs(sp.velocity_ned[1]) > abs(sp.velocity_ned[0])  # crosswind (east-west)
+        if sp.state == "cast" and first_cast is None:
+            first_cast = sp
+    assert first_cast is not None and sp.state == "cast"
+    assert abs(first_cast.velocity_ned[1]) > 2.0 * abs(first_cast.velocity_ned[0])  # crosswind (east-west)
+    assert first_cast.velocity_ned[0] < 0.0  # and back toward the anchor just downwind of the last hit
 
 
 def test_sweep_turns_about_its_reference_point_with_the_wind():
