@@ -5,7 +5,8 @@ and the strategy's seeded choices), so a batch is reproducible whatever ``jobs``
 Statistics (:func:`summarize`):
 - success rate: declared within 5 m of the true source, horizontally;
 - median and 90th-percentile time to declaration (s from t = 0 on the ground, successful trials);
-- median path length over the start distance (horizontal, take-off to declaration, successful trials);
+- median path length over the start distance (horizontal, take-off to declaration, successful trials),
+  and the part of it flown before first coming within the success radius (``reach_ratio_median``);
 - failures by cause (``declared-far``, ``timeout``, ``geofence``, ``crash``, ``takeoff``).
 """
 
@@ -114,6 +115,7 @@ def summarize(results: list[TrialResult]) -> dict:
         "time_median_s": float(np.median(times)) if len(ok) else math.nan,
         "time_p90_s": float(np.percentile(times, 90)) if len(ok) else math.nan,
         "path_ratio_median": float(np.median(ratios)) if len(ok) else math.nan,
+        "reach_ratio_median": float(np.median([r.reach_ratio for r in ok])) if ok else math.nan,
         "error_median_m": float(np.median([r.error_m for r in ok])) if ok else math.nan,
         "failures": dict(sorted(causes.items())),
         "seeds_failed": [r.seed for r in results if not r.success],

@@ -266,6 +266,9 @@ def test_inprocess_trial_oracle_success_and_determinism():
     assert a.success and a.cause == "" and a.error_m < 5.0
     assert a.start_distance_m == pytest.approx(60.0)
     assert 1.0 < a.path_ratio < 5.0 and 0.0 < a.time_s < 300.0
+    # It came within the success radius on the way: at least the start distance less that
+    # radius flown by then, and no more than the whole path.
+    assert (a.start_distance_m - 5.0) / a.start_distance_m <= a.reach_ratio <= a.path_ratio
     b = run_trial("open-field", "surge-cast", "oracle", seed=102)
     assert b.declared_ned == a.declared_ned and b.time_s == a.time_s
 

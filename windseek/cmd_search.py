@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  success rate: {100 * s['success_rate']:.0f} % ({s['successes']}/{s['trials']} declared within 5 m)")
     print(f"  time to declaration: median {_fmt(s['time_median_s'], ' s')}, 90th percentile "
           f"{_fmt(s['time_p90_s'], ' s')} (successful trials)")
-    print(f"  path / start distance: median {_fmt(s['path_ratio_median'], '', 2)}; "
+    print(f"  path / start distance: median {_fmt(s['path_ratio_median'], '', 2)} "
+          f"({_fmt(s['reach_ratio_median'], '', 2)} until first within 5 m of the source); "
           f"declaration error: median {_fmt(s['error_median_m'], ' m')}")
     fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "none"
     print(f"  failures by cause: {fails}")

@@ -51,6 +51,9 @@ class TrialResult:
     error_m: horizontal distance declared - true source (nan without a declaration).
     time_s: simulation time of the declaration (nan without one).
     path_m: horizontal path flown from the end of the take-off to the declaration (or the end).
+    reach_path_m: horizontal path flown until the vehicle first came within ``SUCCESS_RADIUS_M``
+        of the source, horizontally (nan if it never did): the part of ``path_m`` spent finding
+        the source, the rest is spent deciding it is there.
     start_distance_m: horizontal distance from the start to the true source.
     cause: "" on success, else one of FAILURE_CAUSES.
     """
@@ -73,14 +76,21 @@ class TrialResult:
     diag: dict = field(default_factory=dict)
     wall_s: float = 0.0
     track: list[list[float]] = field(default_factory=list)  # [t, n, e, d] per second when asked
+    reach_path_m: float = math.nan
 
     @property
     def path_ratio(self) -> float:
         return self.path_m / self.start_distance_m if self.start_distance_m > 0 else math.nan
 
+    @property
+    def reach_ratio(self) -> float:
+        """``reach_path_m`` over the start distance."""
+        return self.reach_path_m / self.start_distance_m if self.start_distance_m > 0 else math.nan
+
     def to_dict(self) -> dict:
         d = asdict(self)
         d["path_ratio"] = self.path_ratio
+        d["reach_ratio"] = self.reach_ratio
         return d
 
 
@@ -133,6 +143,7 @@ def run_trial(
     chem_value, chem_det = 0.0, False
     track: list[list[float]] = []
     path = 0.0
+    reach_path = math.nan
     prev_pos: np.ndarray | None = None
     sp = Setpoint()
     cause = ""
@@ -180,6 +191,8 @@ def run_trial(
         if prev_pos is not None:
             path += float(np.hypot(*(pos[0:2] - prev_pos[0:2])))
         prev_pos = pos
+        if math.isnan(reach_path) and float(np.hypot(*(pos[0:2] - src[0:2]))) <= SUCCESS_RADIUS_M:
+            reach_path = path
         if float(np.hypot(*(pos[0:2] - home[0:2]))) > geofence_m:
             cause = "geofence"
             break
@@ -221,4 +234,5 @@ def run_trial(
         start_distance_m=start_dist, cause=cause, end_state=sp.state,
         n_detections=strat.memory.n_detect, hit_rate_at_last=round(strat.memory.hit_rate_at_last, 3),
         diag=getattr(strat, "diag", {}), wall_s=_time.perf_counter() - wall0, track=track,
+        reach_path_m=reach_path,
     )
