@@ -27,6 +27,7 @@ from typing import Protocol
 import numpy as np
 
 from estimator.direction import DirectionFilter, speed_direction
+from estimator.ground_gate import GroundGate
 from estimator.inprocess import AhrsErrorModel, model_params
 from estimator.ukf import EstimatorConfig, WindEstimator
 from mission.strategies.base import WindInfo
@@ -120,8 +121,7 @@ class EstimatedWind:
         self._model = model_params(sim.vehicle, seed, perturb_model)
         self._config = config
         self.estimator = WindEstimator(self._model, config)
-        self._fed = False  # the estimator has had samples since its (re)start
-        self._grounded = False  # samples withheld since (the vehicle on the ground)
+        self._gate = GroundGate()
         self.restarts = 0
         self.ahrs = ahrs or AhrsErrorModel()
         self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xA4C5]))
@@ -160,24 +160,16 @@ class EstimatedWind:
             raise RuntimeError("IMU samples and truth rows out of step (drain once per tick)")
         esc = drained["esc"]
         self._pending_gnss.extend(drained["gnss"])
-        if self.sim.fc.on_ground:
-            # Paused on the ground, as the MAVLink companion is (``windseek estimator``): ground
-            # contact forces are not in the force model, and the uncalibrated preset's force-scale
-            # state, released 1.5 s after the first sample, would absorb them (seen: scale 0.96
-            # +- 0.002 with the exact model, wind speed 7 m/s for 5). The filter cold-starts at
-            # lift-off; a filter that already flew is replaced at the next lift-off (not at
-            # touchdown, so its figures stay readable after landing), as the MAVSDK runner does.
+        action = self._gate.admit(self.sim.fc.on_ground)  # paused on the ground (estimator.ground_gate)
+        if action == "pause":
             self._pending_gnss.clear()
             self._acc_sum[:] = 0.0
             self._gyr_sum[:] = 0.0
             self._n_sum = 0
-            self._grounded = True
             return self.upwind.make(self.estimator.wind_ned, self.estimator.wind_cov)
-        if self._grounded and self._fed:
+        if action == "restart":
             self.estimator = WindEstimator(self._model, self._config)
             self.restarts += 1
-        self._grounded = False
-        self._fed = True
         est = self.estimator
         ei = 0
         for k, (t, acc, gyr) in enumerate(imu):

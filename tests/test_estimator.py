@@ -330,3 +330,14 @@ def test_mavlink_failed_esc_blocks_rotor_speeds():
     for m in _roundtrip(msgs):
         ad.handle(m)
     assert est._w_rot is None
+
+
+def test_ground_gate_pauses_and_replaces_a_flown_filter_at_the_next_lift_off():
+    from estimator.ground_gate import GroundGate
+
+    g = GroundGate()
+    assert [g.admit(True), g.admit(True)] == ["pause", "pause"]
+    assert g.admit(False) == "feed"  # first lift-off: the unfed filter starts, no restart
+    assert g.admit(False) == "feed"
+    assert g.admit(True) == "pause"  # touchdown: kept (its figures stay readable)
+    assert [g.admit(False), g.admit(False)] == ["restart", "feed"]  # next lift-off: a fresh filter

@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from estimator.ground_gate import GroundGate
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.ukf import WindEstimator
 from mission.safety import Abort, EstimatorWatch, LinkWatchdog, SafetyLimits, Supervisor
@@ -224,8 +225,7 @@ class MavsdkMission:
             self._vehicle_params = load_vehicle(cfg.vehicle)
             self.estimator = WindEstimator(self._vehicle_params)
             self.adapter = MavlinkWindAdapter(self.estimator)
-        self._est_fed = False  # the estimator has had samples since its (re)start
-        self._est_grounded = False  # samples withheld since (the vehicle on the ground)
+        self._est_gate = GroundGate()
         self.est_watch = EstimatorWatch()
         self._unsubscribe: list[tuple[Any, Any]] = []
         self._imu_claimed = ""
@@ -320,19 +320,14 @@ class MavsdkMission:
         samples still to come, and those would be rejected as older than the filter.
         """
         pend = self._pending_vel
-        if self.state.landed == LANDED_ON_GROUND:
-            # Paused on the ground (as ``windseek estimator`` and the in-process runner are):
-            # ground contact is not in the force model, and the uncalibrated preset's force-scale
-            # state would absorb it. The filter cold-starts at lift-off (a filter that already
-            # flew is replaced then, not at touchdown, so the final figures are the flight's).
-            self._est_grounded = True
+        # Paused on the ground, cold-started at lift-off (estimator.ground_gate).
+        action = self._est_gate.admit(self.state.landed == LANDED_ON_GROUND)
+        if action == "pause":
             pend.clear()
             return
-        if self._est_grounded and self._est_fed:
+        if action == "restart":
             self.estimator = WindEstimator(self._vehicle_params)
             self.adapter = MavlinkWindAdapter(self.estimator)
-        self._est_grounded = False
-        self._est_fed = True
         if name == "LOCAL_POSITION_NED":
             pend.append(_Msg(name, f))
         else:
