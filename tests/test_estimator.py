@@ -341,3 +341,41 @@ def test_ground_gate_pauses_and_replaces_a_flown_filter_at_the_next_lift_off():
     assert g.admit(False) == "feed"
     assert g.admit(True) == "pause"  # touchdown: kept (its figures stay readable)
     assert [g.admit(False), g.admit(False)] == ["restart", "feed"]  # next lift-off: a fresh filter
+
+
+def test_windseek_estimator_follows_the_landed_state_through_the_ground_gate():
+    """``windseek estimator`` (LiveEstimator) on decoded MAVLink: EXTENDED_SYS_STATE on the ground
+    withholds the inputs, in the air feeds them; after a landing the next lift-off replaces the
+    filter (a filter that never flew is not replaced) and keeps the inputs chosen at the start."""
+    import argparse
+
+    from windseek.cmd_estimator import LiveEstimator
+
+    args = argparse.Namespace(imu_average=1, rate=10.0, vehicle="nasa_quad", esc_order="sitl", ground_gate=True)
+    live = LiveEstimator(args)
+    live.imu_type = "HIL_SENSOR"
+    live.adapter.sources["attitude"] = "ATTITUDE_QUATERNION"
+
+    def step(t: float) -> list:
+        return [mavlink.MAVLink_attitude_quaternion_message(int(t * 1e3), 1, 0, 0, 0, 0, 0, 0, [0] * 4),
+                mavlink.MAVLink_hil_sensor_message(int(t * 1e6), 0, 0, -9.81, 0, 0, 0, 0.2, 0, 0.4, 1013, 0, 0,
+                                                   20, 0, 0)]  # fmt: skip
+
+    def state(landed: int) -> list:
+        return [mavlink.MAVLink_extended_sys_state_message(0, landed)]
+
+    for m in _roundtrip(state(1) + step(0.01) + step(0.02)):
+        live.handle(m)
+    assert live.on_ground() and not live.adapter.counts and live.t == pytest.approx(0.02)  # paused, clock runs
+    first = live.est
+    for m in _roundtrip(state(2) + step(0.03) + step(0.04)):
+        live.handle(m)
+    assert live.est is first and live.restarts == 0  # first lift-off: the unfed filter starts
+    assert live.adapter.counts["HIL_SENSOR"] == 2 and live.adapter.counts["ATTITUDE_QUATERNION"] == 2
+    for m in _roundtrip(state(1) + step(0.05)):
+        live.handle(m)
+    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # touchdown: paused, kept
+    for m in _roundtrip(state(2) + step(0.06)):
+        live.handle(m)
+    assert live.est is not first and live.restarts == 1  # next lift-off: a fresh filter, fed
+    assert live.adapter.counts["HIL_SENSOR"] == 1 and live.adapter.sources["attitude"] == "ATTITUDE_QUATERNION"

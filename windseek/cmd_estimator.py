@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from estimator.ground_gate import GroundGate
 from sitl.link.wire import json_safe
 from sitl.link.wire_names import ESTIMATOR_COMPONENT
 
@@ -97,7 +98,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="SET_MESSAGE_INTERVAL for the inputs at start: those not streaming (default), all, none")
     p.add_argument("--ground-gate", action=argparse.BooleanOptionalAction, default=True,
                    help="pause the filter while the autopilot reports the vehicle on the ground (EXTENDED_SYS_STATE) "
-                   "and restart it at take-off (default on)")
+                   "and replace a filter that flew at the next take-off (default on; estimator.ground_gate)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
     p.add_argument("--link-timeout", type=float, default=10.0, metavar="S",
@@ -134,6 +135,7 @@ class LiveEstimator:
         #: MAV_LANDED_STATE from EXTENDED_SYS_STATE (None: not reported, the filter always runs).
         self.landed_state: int | None = None
         self.restarts = 0
+        self._gate = GroundGate()
         self.imu_type: str | None = None
         self.seen: dict[str, int] = {}
         self.pending_vel: list[Any] = []
@@ -151,8 +153,8 @@ class LiveEstimator:
         return self.args.ground_gate and self.landed_state == LANDED_ON_GROUND
 
     def _restart(self) -> None:
-        """A fresh filter at take-off: on the ground the ground reaction is not in the force model,
-        and a filter that ran there starts the flight with a badly wrong vertical wind."""
+        """A fresh filter at the lift-off after a flight (``estimator.ground_gate``); the inputs
+        chosen at the start (``choose_inputs``) carry over."""
         sources = dict(self.adapter.sources)
         self.est = self._make()
         self.adapter = self._adapter(self.est)
@@ -165,17 +167,17 @@ class LiveEstimator:
         mtype = msg.get_type()
         self.seen[mtype] = self.seen.get(mtype, 0) + 1
         if mtype == "EXTENDED_SYS_STATE":
-            was_ground = self.on_ground()
             self.landed_state = int(msg.landed_state)
-            if was_ground and not self.on_ground() and self.landed_state != 0:
-                self._restart()
             return
         if mtype not in INPUTS:
             return
-        if self.on_ground():
+        action = self._gate.admit(self.on_ground())  # paused on the ground (estimator.ground_gate)
+        if action == "pause":
             if mtype == self.imu_type:
                 self.t = msg.time_usec * 1e-6
             return
+        if action == "restart":
+            self._restart()
         if self.imu_type is None:
             return  # the inputs are chosen after the start window (see choose_inputs)
         if mtype in ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU"):
