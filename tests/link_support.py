@@ -9,6 +9,7 @@ import time
 from collections.abc import AsyncIterator, Callable, Iterator
 from typing import Any
 
+from mission.runners.autopilot import find_autopilot
 from sitl.link import SitlLink, UdpTransport
 from sitl.link.transports import Transport
 from sitl.scenario import Scenario, parse_scenario
@@ -73,21 +74,10 @@ async def first(agen: AsyncIterator, pred: Callable[[Any], bool], timeout: float
 
 
 async def autopilot(sdk: Any, url: str, timeout: float = 15.0) -> Any:
-    """Connect ``sdk`` (a ``mavsdk.asyncio.Mavsdk``) to ``url`` and return the autopilot system.
-
-    ``first_autopilot`` alone was seen (rarely, under load) to miss an autopilot that was already
-    discovered, so the discovered systems are polled as well; None after ``timeout`` s.
-    """
+    """Connect ``sdk`` (a ``mavsdk.asyncio.Mavsdk``) to ``url`` and return the autopilot system
+    (the runner's rule, ``mission.runners.autopilot``); None after ``timeout`` s."""
     await sdk.add_any_connection(url)
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
-        drone = await sdk.first_autopilot(1.0)
-        if drone is not None:
-            return drone
-        for system in await sdk.get_systems():
-            if await system.has_autopilot() and await system.is_connected():
-                return system
-    return None
+    return await find_autopilot(sdk, timeout)
 
 
 def wait_until(pred: Callable[[], bool], timeout: float, what: str = "") -> None:

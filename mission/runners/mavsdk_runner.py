@@ -56,6 +56,7 @@ import numpy as np
 from estimator.ground_gate import GroundGate
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.ukf import WindEstimator
+from mission.runners.autopilot import find_autopilot
 from mission.safety import Abort, EstimatorWatch, LinkWatchdog, SafetyLimits, Supervisor
 from mission.strategies import make_strategy
 from mission.strategies.base import Observation, WindInfo
@@ -363,7 +364,7 @@ class MavsdkMission:
         try:
             async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
                 await sdk.add_any_connection(cfg.connect)
-                drone = await self._autopilot(sdk)
+                drone = await find_autopilot(sdk, self.cfg.connect_timeout_s)
                 if drone is None:
                     raise MissionError(f"no autopilot heartbeat on {cfg.connect} within {cfg.connect_timeout_s:g} s")
                 try:
@@ -375,19 +376,6 @@ class MavsdkMission:
         finally:
             self.result.wall_s = round(time.monotonic() - wall0, 2)
         return self.result
-
-    async def _autopilot(self, sdk: Any) -> Any:
-        """The autopilot system, or None after ``connect_timeout_s``. ``first_autopilot`` alone was
-        seen (rarely, under load) to miss an autopilot already discovered: poll the systems too."""
-        t_end = time.monotonic() + self.cfg.connect_timeout_s
-        while time.monotonic() < t_end:
-            drone = await sdk.first_autopilot(1.0)
-            if drone is not None:
-                return drone
-            for system in await sdk.get_systems():
-                if await system.has_autopilot() and await system.is_connected():
-                    return system
-        return None
 
     async def _fly(self, drone: Any) -> None:
         from mavsdk.asyncio.plugins.action import ActionAsync
