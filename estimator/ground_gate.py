@@ -5,12 +5,27 @@ preset's force-scale state would absorb them (seen: scale 0.96 +- 0.002 with the
 a 5 m/s wind read as 7 m/s). So the filter takes no sample while the vehicle is on the ground
 and cold-starts at lift-off; a filter that already flew is replaced at the next lift-off, not
 at touchdown, so its figures stay readable after landing. No I/O: the adapters say whether the
-vehicle is on the ground (the simulator's land detector, MAVLink EXTENDED_SYS_STATE).
+vehicle is on the ground (the simulator's contact flag, MAVLink EXTENDED_SYS_STATE through
+:func:`withheld`).
+
+Over MAVLink the filter also stops at the start of a landing (MAV_LANDED_STATE_LANDING):
+EXTENDED_SYS_STATE arrives a fraction of a second after touchdown, and the ground-contact
+samples of that interval were read as an updraft (the last estimate before the pause: a
+vertical wind of -8 to -10 m/s NED through MAVProxy and in ``windseek demo``).
 """
 
 from __future__ import annotations
 
 from typing import Literal
+
+#: MAV_LANDED_STATE values (MAVLink common.xml).
+LANDED_UNDEFINED, LANDED_ON_GROUND, LANDED_IN_AIR, LANDED_TAKEOFF, LANDED_LANDING = 0, 1, 2, 3, 4
+
+
+def withheld(landed_state: int | None) -> bool:
+    """True when a MAVLink MAV_LANDED_STATE (EXTENDED_SYS_STATE; None: never reported) says the
+    filter must take no samples: on the ground or landing."""
+    return landed_state in (LANDED_ON_GROUND, LANDED_LANDING)
 
 
 class GroundGate:

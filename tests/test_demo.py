@@ -136,6 +136,10 @@ def test_demo_runs_three_processes_and_writes_logs(tmp_path: Path) -> None:
     assert s["found"] == (res.returncode == 0)
     assert s["mission"]["wind"] == "mavlink" and s["truth"]["wind_estimates_scored"] > 0
     assert s["wind_rmse_horizontal_m_s"] < 2.0
+    # The estimator's last WIND_COV is from before the landing (it pauses at MAV_LANDED_STATE
+    # LANDING), not a touchdown "updraft" (it was about [0.2, -0.1, -9.8]).
+    wn, we, wd = s["mission"]["wind_ned"]
+    assert np.hypot(wn + 5.0, we) < 2.5 and abs(wd) < 1.5, s["mission"]["wind_ned"]
     rrd, tlog = Path(s["files"]["rrd"]), Path(s["files"]["tlog"])
     assert rrd.name.endswith("-open-field-surge-cast.rrd") and tlog.with_suffix(".rrd") == rrd
     for name in ("sitl", "estimator", "mission"):  # all three processes ran and left their output

@@ -344,9 +344,9 @@ def test_ground_gate_pauses_and_replaces_a_flown_filter_at_the_next_lift_off():
 
 
 def test_windseek_estimator_follows_the_landed_state_through_the_ground_gate():
-    """``windseek estimator`` (LiveEstimator) on decoded MAVLink: EXTENDED_SYS_STATE on the ground
-    withholds the inputs, in the air feeds them; after a landing the next lift-off replaces the
-    filter (a filter that never flew is not replaced) and keeps the inputs chosen at the start."""
+    """``windseek estimator`` (LiveEstimator) on decoded MAVLink: EXTENDED_SYS_STATE on the ground or
+    landing withholds the inputs, in the air feeds them; after a landing the next lift-off replaces
+    the filter (a filter that never flew is not replaced) and keeps the inputs chosen at the start."""
     import argparse
 
     from windseek.cmd_estimator import LiveEstimator
@@ -366,15 +366,19 @@ def test_windseek_estimator_follows_the_landed_state_through_the_ground_gate():
 
     for m in _roundtrip(state(1) + step(0.01) + step(0.02)):
         live.handle(m)
-    assert live.on_ground() and not live.adapter.counts and live.t == pytest.approx(0.02)  # paused, clock runs
+    assert live.paused() and not live.adapter.counts and live.t == pytest.approx(0.02)  # paused, clock runs
     first = live.est
     for m in _roundtrip(state(2) + step(0.03) + step(0.04)):
         live.handle(m)
     assert live.est is first and live.restarts == 0  # first lift-off: the unfed filter starts
     assert live.adapter.counts["HIL_SENSOR"] == 2 and live.adapter.counts["ATTITUDE_QUATERNION"] == 2
-    for m in _roundtrip(state(1) + step(0.05)):
+    for m in _roundtrip(state(4) + step(0.05)):
         live.handle(m)
-    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # touchdown: paused, kept
+    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # landing: paused before touchdown
+    assert not live.due()  # and nothing published
+    for m in _roundtrip(state(1) + step(0.055)):
+        live.handle(m)
+    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # on the ground: paused, kept
     for m in _roundtrip(state(2) + step(0.06)):
         live.handle(m)
     assert live.est is not first and live.restarts == 1  # next lift-off: a fresh filter, fed

@@ -5,9 +5,11 @@ serial, runs :class:`~estimator.ukf.WindEstimator` through
 :class:`~estimator.mavlink_adapter.MavlinkWindAdapter` on the live telemetry and sends the
 estimate back on the same link as WIND_COV (air-mass velocity NED, m/s; variances m^2/s^2),
 as system = the autopilot's, component 191 (MAV_COMP_ID_ONBOARD_COMPUTER), with a 1 Hz
-HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER). An autopilot that forwards (PX4 ``MAV_X_FORWARD``,
-``windseek sitl --forward``, MAVProxy, mavlink-router) passes it on to the mission and ground
-stations.
+HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER). A router between the programs (mavlink-router,
+``windseek sitl --forward``) passes it on to the mission and ground stations; PX4 forwards it
+only to its other MAVLink instances (``MAV_X_FORWARD``), and MAVProxy only to its master, never
+to its other outputs (README, "One serial link, several programs"). The filter pauses while the
+autopilot reports the vehicle on the ground or landing (``estimator.ground_gate``).
 
 Inputs: IMU HIL_SENSOR (every sample, windseek SITL) or HIGHRES_IMU (PX4; HIL_SENSOR wins when
 both come), ATTITUDE_QUATERNION (or ATTITUDE), LOCAL_POSITION_NED velocity, ESC_STATUS rotor
@@ -34,14 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from estimator.ground_gate import GroundGate
+from estimator.ground_gate import GroundGate, withheld
 from sitl.link.wire import json_safe
 from sitl.link.wire_names import ESTIMATOR_COMPONENT
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
-LANDED_ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
 #: Message ids and the rate (Hz) asked for when an input is missing at start.
 WANTED = {"imu": (("HIL_SENSOR", "HIGHRES_IMU"), 105, 100.0),
           "attitude": (("ATTITUDE_QUATERNION", "ATTITUDE"), 31, 50.0),
@@ -97,7 +98,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--request-rates", choices=("missing", "always", "never"), default="missing",
                    help="SET_MESSAGE_INTERVAL for the inputs at start: those not streaming (default), all, none")
     p.add_argument("--ground-gate", action=argparse.BooleanOptionalAction, default=True,
-                   help="pause the filter while the autopilot reports the vehicle on the ground (EXTENDED_SYS_STATE) "
+                   help="pause the filter while the autopilot reports the vehicle on the ground or landing "
+                   "(EXTENDED_SYS_STATE) "
                    "and replace a filter that flew at the next take-off (default on; estimator.ground_gate)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
@@ -148,9 +150,10 @@ class LiveEstimator:
         self.reason = ""
 
     # ------------------------------------------------------------------ input
-    def on_ground(self) -> bool:
-        """True while the autopilot reports the vehicle on the ground (and --ground-gate is on)."""
-        return self.args.ground_gate and self.landed_state == LANDED_ON_GROUND
+    def paused(self) -> bool:
+        """True while the autopilot reports the vehicle on the ground or landing (and --ground-gate
+        is on): the filter is paused (``estimator.ground_gate``)."""
+        return self.args.ground_gate and withheld(self.landed_state)
 
     def _restart(self) -> None:
         """A fresh filter at the lift-off after a flight (``estimator.ground_gate``); the inputs
@@ -171,7 +174,7 @@ class LiveEstimator:
             return
         if mtype not in INPUTS:
             return
-        action = self._gate.admit(self.on_ground())  # paused on the ground (estimator.ground_gate)
+        action = self._gate.admit(self.paused())  # paused on the ground (estimator.ground_gate)
         if action == "pause":
             if mtype == self.imu_type:
                 self.t = msg.time_usec * 1e-6
@@ -229,7 +232,7 @@ class LiveEstimator:
 
     # ------------------------------------------------------------------ output
     def due(self) -> bool:
-        if self.on_ground() or self.est.t is None or not math.isfinite(self.t) or self.t < self.next_pub:
+        if self.paused() or self.est.t is None or not math.isfinite(self.t) or self.t < self.next_pub:
             return False
         self.next_pub = self.t + 1.0 / self.args.rate
         return True
@@ -252,8 +255,8 @@ class LiveEstimator:
 
     def line(self) -> str:
         e = self.est
-        if self.on_ground():
-            return f"t {self.t:7.1f} s  on the ground: filter paused  WIND_COV sent {self.published}"
+        if self.paused():
+            return f"t {self.t:7.1f} s  on the ground or landing: filter paused  WIND_COV sent {self.published}"
         if e.t is None:
             return f"waiting for inputs (seen: {', '.join(sorted(k for k in self.seen if k in INPUTS)) or 'none'})"
         w = e.wind_ned

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from estimator.ground_gate import GroundGate
+from estimator.ground_gate import LANDED_IN_AIR, LANDED_ON_GROUND, GroundGate, withheld
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.ukf import WindEstimator
 from mission.runners.autopilot import find_autopilot
@@ -72,7 +72,6 @@ PX4_MAIN_OFFBOARD, PX4_MAIN_AUTO = 6, 4
 PX4_AUTO_NAMES = {1: "AUTO.READY", 2: "AUTO.TAKEOFF", 3: "AUTO.LOITER", 4: "AUTO.MISSION", 5: "AUTO.RTL",
                   6: "AUTO.LAND"}  # fmt: skip
 MAV_MODE_FLAG_SAFETY_ARMED = 128
-LANDED_ON_GROUND, LANDED_IN_AIR = 1, 2
 
 DIRECT_MESSAGES = ("HIL_SENSOR", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "ESC_STATUS",
                    "NAMED_VALUE_FLOAT", "HEARTBEAT", "EXTENDED_SYS_STATE", "STATUSTEXT")  # fmt: skip
@@ -321,8 +320,8 @@ class MavsdkMission:
         samples still to come, and those would be rejected as older than the filter.
         """
         pend = self._pending_vel
-        # Paused on the ground, cold-started at lift-off (estimator.ground_gate).
-        action = self._est_gate.admit(self.state.landed == LANDED_ON_GROUND)
+        # Paused on the ground and while landing, cold-started at lift-off (estimator.ground_gate).
+        action = self._est_gate.admit(withheld(self.state.landed))
         if action == "pause":
             pend.clear()
             return
