@@ -18,8 +18,8 @@ from __future__ import annotations
 
 from typing import Literal
 
-#: MAV_LANDED_STATE values (MAVLink common.xml).
-LANDED_UNDEFINED, LANDED_ON_GROUND, LANDED_IN_AIR, LANDED_TAKEOFF, LANDED_LANDING = 0, 1, 2, 3, 4
+#: MAV_LANDED_STATE values used here (MAVLink common.xml).
+LANDED_ON_GROUND, LANDED_IN_AIR, LANDED_LANDING = 1, 2, 4
 
 
 def withheld(landed_state: int | None) -> bool:
