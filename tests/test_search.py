@@ -200,6 +200,8 @@ def test_plume_end_is_verified_upwind_before_declaring(name):
     assert np.ptp(vp[:, 1]) >= 2 * p.verify_half_width_m - 1.0  # swept crosswind
     assert np.median(vp[:, 0]) > SOURCE[0]  # upwind of the source
     assert np.hypot(*(sp.declared_source_ned[0:2] - SOURCE)) < 5.0
+    last = s.verifications[-1]
+    assert last.outcome == "verified" and last.candidate_ne == pytest.approx(tuple(sp.declared_source_ned[0:2]))
 
 
 def test_far_field_end_with_few_hits_is_not_declared():
@@ -269,8 +271,17 @@ def test_inprocess_trial_oracle_success_and_determinism():
     # It came within the success radius on the way: at least the start distance less that
     # radius flown by then, and no more than the whole path.
     assert (a.start_distance_m - 5.0) / a.start_distance_m <= a.reach_ratio <= a.path_ratio
+    # The verification records: the sweep that declared is the last one, found nothing and
+    # tested the declared point (surge-cast declares after one verified end); every hit that
+    # interrupted a sweep is counted; each sweep's path is part of the trial's.
+    v = a.verifications
+    assert v and v[-1]["outcome"] == "verified"
+    assert v[-1]["candidate_error_m"] == pytest.approx(a.error_m, abs=0.01)
+    assert sum(r["outcome"] == "interrupted" for r in v) == a.diag["n_aborted"]
+    assert all(r["duration_s"] > 0.0 and r["path_m"] >= 0.0 for r in v)
+    assert sum(r["path_m"] for r in v) <= a.path_m
     b = run_trial("open-field", "surge-cast", "oracle", seed=102)
-    assert b.declared_ned == a.declared_ned and b.time_s == a.time_s
+    assert b.declared_ned == a.declared_ned and b.time_s == a.time_s and b.verifications == a.verifications
 
 
 def test_inprocess_time_limit_is_a_timeout():

@@ -56,6 +56,11 @@ class TrialResult:
         the source, the rest is spent deciding it is there.
     start_distance_m: horizontal distance from the start to the true source.
     cause: "" on success, else one of FAILURE_CAUSES.
+    verifications: the strategy's verification sweeps, in order, each a dict: ``t_start_s``,
+        ``duration_s``, ``path_m`` (horizontal path flown during it), ``outcome``
+        (``verified`` / ``interrupted``, ``""`` if the trial ended first) and
+        ``candidate_error_m`` (horizontal distance of the candidate it tested from the true
+        source; scoring only, the strategy never sees it).
     """
 
     scenario: str
@@ -77,6 +82,7 @@ class TrialResult:
     wall_s: float = 0.0
     track: list[list[float]] = field(default_factory=list)  # [t, n, e, d] per second when asked
     reach_path_m: float = math.nan
+    verifications: list[dict] = field(default_factory=list)
 
     @property
     def path_ratio(self) -> float:
@@ -144,6 +150,8 @@ def run_trial(
     track: list[list[float]] = []
     path = 0.0
     reach_path = math.nan
+    path_t: list[float] = []  # path flown so far at each offboard tick, for the verification records
+    path_m: list[float] = []
     prev_pos: np.ndarray | None = None
     sp = Setpoint()
     cause = ""
@@ -191,6 +199,8 @@ def run_trial(
         if prev_pos is not None:
             path += float(np.hypot(*(pos[0:2] - prev_pos[0:2])))
         prev_pos = pos
+        path_t.append(t)
+        path_m.append(path)
         if math.isnan(reach_path) and float(np.hypot(*(pos[0:2] - src[0:2]))) <= SUCCESS_RADIUS_M:
             reach_path = path
         if float(np.hypot(*(pos[0:2] - home[0:2]))) > geofence_m:
@@ -235,4 +245,18 @@ def run_trial(
         n_detections=strat.memory.n_detect, hit_rate_at_last=round(strat.memory.hit_rate_at_last, 3),
         diag=getattr(strat, "diag", {}), wall_s=_time.perf_counter() - wall0, track=track,
         reach_path_m=reach_path,
+        verifications=_verification_records(strat, src, t, path_t, path_m),
     )
+
+
+def _verification_records(strat: object, src: np.ndarray, t_end: float, path_t: list[float], path_m: list[float]
+                          ) -> list[dict]:
+    """The strategy's verification sweeps scored against the true source (see TrialResult)."""
+    out = []
+    for v in getattr(strat, "verifications", []):
+        t1 = v.t_end if v.outcome else t_end
+        p0, p1 = np.interp([v.t_start, t1], path_t, path_m) if path_t else (0.0, 0.0)
+        out.append({"t_start_s": round(v.t_start, 2), "duration_s": round(t1 - v.t_start, 2),
+                    "path_m": round(float(p1 - p0), 2), "outcome": v.outcome,
+                    "candidate_error_m": round(float(np.hypot(*(np.asarray(v.candidate_ne) - src[0:2]))), 2)})
+    return out

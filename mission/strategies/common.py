@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -276,6 +277,18 @@ class Sweep:
         return cls(t, ref, along0, half_width, growth, max_half_width, direction, drift)
 
 
+@dataclass
+class Verification:
+    """One verification sweep, for diagnostics: when it started (s), the candidate it tested
+    (north, east, m) and how it ended: ``"verified"`` (no hit: a verified end),
+    ``"interrupted"`` (a hit: the plume goes on upwind) or ``""`` while it runs."""
+
+    t_start: float
+    candidate_ne: tuple[float, float]
+    t_end: float = math.nan
+    outcome: str = ""
+
+
 class BaseStrategy:
     """Common frame of the strategies: altitude hold, axis, memory, declaration, descent.
 
@@ -301,6 +314,7 @@ class BaseStrategy:
         self.verify_cand: np.ndarray | None = None
         self.verified: list[np.ndarray] = []  # candidate (north, east, m) of every verified end
         self.n_verify_aborted = 0
+        self.verifications: list[Verification] = []  # every verification sweep, for diagnostics
         self.verify_spread = 0.0
         self._verify_armed = True
         self.carrot: np.ndarray | None = None
@@ -341,6 +355,7 @@ class BaseStrategy:
             self.memory.det_eligible[-1] = True
             self.verify = None
             self.n_verify_aborted += 1
+            self._end_verification(obs.t, "interrupted")
             return None
         pos = obs.position_ned[0:2]
         v = self.verify.velocity(obs.t, pos, u, n, p.verify_speed_m_s)
@@ -350,6 +365,7 @@ class BaseStrategy:
         cand = self.verify_cand
         self.verify = None
         self.verified.append(cand.copy())
+        self._end_verification(obs.t, "verified")
         n_same = self._n_verified_at(cand, u)
         if n_same >= self._confirmations_needed() and self._supported(cand, u):
             self._declare(obs.t, cand, repeat=n_same >= 2)
@@ -416,6 +432,11 @@ class BaseStrategy:
         self.verify = Sweep(t, cand, p.verify_offset_m, half, 1.0, half, direction, 0.0)
         self.verify_cand = cand.copy()
         self._verify_armed = False
+        self.verifications.append(Verification(t, (float(cand[0]), float(cand[1]))))
+
+    def _end_verification(self, t: float, outcome: str) -> None:
+        rec = self.verifications[-1]
+        rec.t_end, rec.outcome = t, outcome
 
     def _check_timeout_declare(self, t: float, u: np.ndarray) -> bool:
         """Fallback: lost for ``declare_after_s`` after a verified end at the current candidate
