@@ -13,16 +13,13 @@ development set; the true source position is used for scoring only.
 
 from __future__ import annotations
 
-import argparse
+import dev_set
 
 from mission.evaluate import run_batch, summarize
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=100)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap = dev_set.parser(__doc__, trials=40)
     ap.add_argument("--strategies", default="surge-cast,zigzag")
     ap.add_argument("--winds", default="estimated,oracle")
     ap.add_argument("--scenario", default="open-field")

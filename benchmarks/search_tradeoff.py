@@ -13,9 +13,10 @@ wind mode, success rate and median path / start distance of surge-cast with its 
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
+
+import dev_set
 
 from mission.evaluate import run_batch, summarize
 
@@ -26,10 +27,7 @@ VARIANTS = {
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=40)
-    ap.add_argument("--seed", type=int, default=100)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap = dev_set.parser(__doc__, trials=40)
     ap.add_argument("--winds", default="estimated,oracle")
     ap.add_argument("--scenarios", default="open-field,open-field-high")
     args = ap.parse_args()

@@ -15,8 +15,7 @@ Default seeds 100.. are the development set.
 
 from __future__ import annotations
 
-import argparse
-
+import dev_set
 import numpy as np
 
 from mission.evaluate import run_batch
@@ -25,10 +24,7 @@ CLASSES = ((0.0, 3.0, "<= 3 m (plume end)"), (3.0, 8.0, "3-8 m (short)"), (8.0, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=80)
-    ap.add_argument("--seed", type=int, default=100)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap = dev_set.parser(__doc__, trials=80)
     ap.add_argument("--strategy", default="surge-cast")
     ap.add_argument("--wind", default="estimated")
     ap.add_argument("--scenario", default="open-field")

@@ -103,8 +103,7 @@ class SurgeCastParams(CommonParams):
                             "benchmarks/search_tradeoff.py)")
     verify_speed_m_s: float = _p(1.0, 0.2, 10.0, "ground speed of the verification sweep [m/s]: slow, because "
                                  "what a verification waits for is time (a meandering plume from further "
-                                 "upwind swings back within seconds), not distance (zig-zag keeps 2.5: "
-                                 "slow sweeps cost it success, 90 -> 76 %)")
+                                 "upwind swings back within seconds), not distance")
     cast_half_width_m: float = _p(4.0, 0.5, 100.0, "first cast half-amplitude, crosswind [m]")
     cast_growth: float = _p(1.5, 1.0, 5.0, "cast amplitude factor after each full sweep")
     cast_max_half_width_m: float = _p(30.0, 1.0, 500.0, "largest cast half-amplitude [m]")
