@@ -128,13 +128,17 @@ def test_paper_s1_has_no_chemical_output() -> None:
 
 def test_plume_scenarios_load() -> None:
     names = {"open-field", "open-field-low", "open-field-high", "open-field-stable", "open-field-unstable",
-             "open-field-shift", "paper-anemotaxis"}  # fmt: skip
+             "open-field-shift", "open-field-far", "paper-anemotaxis"}  # fmt: skip
     assert names <= set(builtin_scenarios())
     for name in names:
         sc = load_scenario(name)
         assert sc.plume is not None and sc.duration_s == 300.0 and sc.route.takeoff_altitude_m == 5.0
     assert load_scenario("open-field-stable").plume["stability"] == "F"
     assert load_scenario("open-field-unstable").plume["stability"] == "A"
+    # The far start differs from open-field in the source distance only.
+    far, near = load_scenario("open-field-far"), load_scenario("open-field")
+    assert far.plume["sources"][0]["position_ned"] == [120.0, 0.0, -2.0]
+    assert {**far.plume, "sources": near.plume["sources"]} == near.plume and far.wind == near.wind
     shift = load_scenario("open-field-shift").wind
     v0, v1 = shift.velocity_ned, shift.changes[0].velocity_ned
     turn = np.degrees(np.arctan2(v1[1], v1[0]) - np.arctan2(v0[1], v0[0]))
