@@ -180,6 +180,10 @@ async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observe
     # Landed at the declared source and disarmed (seen by the runner and by the independent listener).
     assert res.disarmed and res.landed
     assert float(np.hypot(*(np.asarray(res.final_ned[0:2]) - np.asarray(res.declared_ned[0:2])))) < 1.0
+    # The sweep that declared is the last verification, found nothing, tested the declared point.
+    last = res.verifications[-1]
+    assert last["outcome"] == "verified" and last["candidate_ne"] == pytest.approx(res.declared_ned[0:2], abs=1e-3)
+    assert last["t_start_s"] > 0.0 and last["t_start_s"] + last["duration_s"] == pytest.approx(res.time_s, abs=0.01)
     observer.wait(lambda: not observer.armed and observer.t > 0, 5.0, "listener sees the disarm")
     assert observer.pos[2] > -0.2, "not on the ground"
     assert [m for _, m, _ in observer.modes].count("OFFBOARD") == 1

@@ -130,6 +130,10 @@ class MissionResult:
     path_m: horizontal path from the start of the search to the declaration (or the end), m.
     cause: ``declared`` or an abort cause of :data:`mission.safety.CAUSES`; reasons: the lines said.
     landed / disarmed: final state seen over the link; final_ned: last position (m, NED).
+    verifications: the strategy's verification sweeps (see ``mission/README.md``), each a dict:
+        ``t_start_s`` (vehicle s from arming), ``duration_s``, ``outcome`` (``verified``: found
+        nothing, ``interrupted``: a hit, ``""``: still running at the end) and ``candidate_ne``
+        (the candidate it tested, m, north / east in the autopilot's local frame).
     """
 
     strategy: str
@@ -154,6 +158,7 @@ class MissionResult:
     state: str = ""
     wind_ned: list[float] | None = None
     estimator: dict[str, Any] = field(default_factory=dict)
+    verifications: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -713,6 +718,12 @@ class MavsdkMission:
         res.final_ned = None if st.pos is None else [round(float(v), 3) for v in st.pos]
         if math.isfinite(st.t) and hasattr(self, "t_arm"):
             res.mission_time_s = round(st.t - self.t_arm, 2)
+        t_arm = getattr(self, "t_arm", 0.0)
+        res.verifications = [
+            {"t_start_s": round(v.t_start - t_arm, 2),
+             "duration_s": round((v.t_end if v.outcome else st.t) - v.t_start, 2), "outcome": v.outcome,
+             "candidate_ne": [round(c, 3) for c in v.candidate_ne]}
+            for v in getattr(self.strategy, "verifications", [])]  # fmt: skip
         if self.estimator is not None:
             est = self.estimator
             res.wind_ned = [round(float(v), 3) for v in est.wind_ned]
