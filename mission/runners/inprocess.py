@@ -254,7 +254,7 @@ def _verification_records(strat: object, src: np.ndarray, t_end: float, path_t: 
     """The strategy's verification sweeps scored against the true source (see TrialResult)."""
     out = []
     for v in getattr(strat, "verifications", []):
-        t1 = v.t_end if v.outcome else t_end
+        t1 = v.end(t_end)
         p0, p1 = np.interp([v.t_start, t1], path_t, path_m) if path_t else (0.0, 0.0)
         out.append({"t_start_s": round(v.t_start, 2), "duration_s": round(t1 - v.t_start, 2),
                     "path_m": round(float(p1 - p0), 2), "outcome": v.outcome,

@@ -721,7 +721,7 @@ class MavsdkMission:
         t_arm = getattr(self, "t_arm", 0.0)
         res.verifications = [
             {"t_start_s": round(v.t_start - t_arm, 2),
-             "duration_s": round((v.t_end if v.outcome else st.t) - v.t_start, 2), "outcome": v.outcome,
+             "duration_s": round(v.end(st.t) - v.t_start, 2), "outcome": v.outcome,
              "candidate_ne": [round(c, 3) for c in v.candidate_ne]}
             for v in getattr(self.strategy, "verifications", [])]  # fmt: skip
         if self.estimator is not None:

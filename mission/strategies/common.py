@@ -288,6 +288,10 @@ class Verification:
     t_end: float = math.nan
     outcome: str = ""
 
+    def end(self, t_now: float) -> float:
+        """When it ended (s), or ``t_now`` while it still runs."""
+        return self.t_end if self.outcome else t_now
+
 
 class BaseStrategy:
     """Common frame of the strategies: altitude hold, axis, memory, declaration, descent.
