@@ -56,7 +56,7 @@ def replay(truth, imu, esc, gnss, n: int, preset: str = "uncalibrated") -> tuple
 
 
 def load_vehicle_from_sim():
-    from sitl.vehicle import load_vehicle
+    from vehicle.params import load_vehicle
 
     return load_vehicle()
 

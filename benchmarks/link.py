@@ -71,7 +71,7 @@ def receive(sock: socket.socket, seconds: float, ping_to: tuple[str, int] | None
     boot_ms: list[int] = []
     ping = None
     if ping_to is not None:
-        from sitl.link.dialect import mavlink
+        from wire.dialect import mavlink
 
         enc = mavlink.MAVLink(None, 255, 190)
         ping = mavlink.MAVLink_ping_message(0, 0, 0, 0)

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from sitl.chem_sensor import ChemSensorConfig
-from sitl.plume import PlumeConfig, PuffPlume, Source
-from sitl.wind import KaimalTurbulence, SteadyWind, WindField
+from sitl.world.chem_sensor import ChemSensorConfig
+from sitl.world.plume import PlumeConfig, PuffPlume, Source
+from sitl.world.wind import KaimalTurbulence, SteadyWind, WindField
 
 SEED = 2024
 REALTIME_FACTOR = 100.0

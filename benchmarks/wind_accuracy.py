@@ -37,11 +37,11 @@ import numpy as np
 from estimator.inprocess import InProcessRunner
 from estimator.metrics import accuracy
 from estimator.ukf import EstimatorConfig
-from sitl.frames import quat_to_dcm
-from sitl.rotor_model import rotor_wrench
 from sitl.scenario import Route, Start, Waypoint, load_scenario
 from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_SPECIFIC_FORCE, T_TIME, T_VEL, T_WIND, Simulation
-from sitl.wind import SteadyWind
+from sitl.world.wind import SteadyWind
+from vehicle.frames import quat_to_dcm
+from vehicle.rotor_model import rotor_wrench
 
 # case: (scenario, perturbed model, no ESC rotor speeds, estimator preset)
 CASES = {

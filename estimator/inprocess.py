@@ -23,10 +23,10 @@ import numpy as np
 
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import EstimatorConfig, WindEstimator
-from sitl.frames import quat_mul
 from sitl.scenario import Scenario
 from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_TIME, T_WIND, Simulation
-from sitl.vehicle import VehicleParams
+from vehicle.frames import quat_mul
+from vehicle.params import VehicleParams
 
 
 @dataclass(frozen=True)

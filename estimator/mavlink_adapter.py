@@ -15,7 +15,7 @@ filter twice; all decoded to SI, FRD/NED):
 - Rotor speeds (rad/s): ESC_STATUS (rpm, windseek dialect, ``index`` = first ESC of the
   message), or RAW_RPM (one sensor per message, no time stamp: the latest time seen is
   used). ESC_INFO carries no speed: its failure flags mark an ESC's telemetry as unusable.
-  ``esc_to_rotor`` maps ESC numbers to the rotor order of ``sitl.rotor_model`` (1 front
+  ``esc_to_rotor`` maps ESC numbers to the rotor order of ``vehicle.rotor_model`` (1 front
   right, 2 rear right, 3 rear left, 4 front left); the project's SITL uses that order, PX4's
   quad-X order (1 FR, 2 RL, 3 FL, 4 RR) is :data:`PX4_QUAD_X`.
 
@@ -34,8 +34,8 @@ from collections import Counter
 import numpy as np
 
 from estimator.ukf import WindEstimator
-from sitl.frames import euler_to_quat
-from sitl.link.dialect import mavlink
+from vehicle.frames import euler_to_quat
+from wire.dialect import mavlink
 
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 G0 = 9.80665

@@ -39,7 +39,7 @@ Reported covariance: the filter's plus a model-error term (``model_error_cov``) 
 coefficient errors the scale cannot absorb, so that the +-2 sigma band stays honest when the
 model is wrong.
 
-The force model is the simulator's own ``sitl.rotor_model.rotor_wrench`` (called from the
+The force model is the simulator's own ``vehicle.rotor_model.rotor_wrench`` (called from the
 numba kernels here), so the estimator and the simulator cannot drift apart; the parameter
 array may be exact or perturbed (``VehicleParams.perturbed``) to show what model error costs.
 
@@ -67,9 +67,9 @@ from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 from numba import njit
 
 from estimator.direction import DirectionFilter, speed_direction
-from sitl.frames import quat_to_dcm
-from sitl.rotor_model import rotor_wrench
-from sitl.vehicle import P_G, P_MASS, P_WMAX, VehicleParams
+from vehicle.frames import quat_to_dcm
+from vehicle.params import P_G, P_MASS, P_WMAX, VehicleParams
+from vehicle.rotor_model import rotor_wrench
 
 # Physical plausibility limits for raw inputs (beyond them a sample is a fault, not data).
 ACCEL_LIMIT_M_S2 = 160.0  # 16 g, a typical accelerometer range
@@ -472,7 +472,7 @@ class WindEstimator:
         return True
 
     def set_rotor_speeds(self, t: float, w_rot: np.ndarray) -> bool:
-        """Rotor speeds (rad/s, rotor order of ``sitl.rotor_model``). Held until the next sample."""
+        """Rotor speeds (rad/s, rotor order of ``vehicle.rotor_model``). Held until the next sample."""
         w = np.asarray(w_rot, dtype=float)
         if not self._check_time("rotors", t):
             return False

@@ -32,8 +32,8 @@ from estimator.inprocess import AhrsErrorModel, model_params
 from estimator.ukf import EstimatorConfig, WindEstimator
 from mission.strategies.base import WindInfo
 from mission.strategies.params import CommonParams
-from sitl.frames import quat_mul
 from sitl.simulation import T_QUAT, Simulation
+from vehicle.frames import quat_mul
 
 WIND_MODES = ("estimated", "oracle", "none")
 

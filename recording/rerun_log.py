@@ -364,7 +364,7 @@ class RunRecorder:
         """Horizontal concentration slice at NED depth ``z`` [m].
 
         ``C[i, j]`` [mg/m^3] is the concentration at (``xs[i]``, ``ys[j]``, z) (the layout of
-        ``sitl.plume.*.slice_grid``). Drawn as coloured points on a log scale between
+        ``sitl.world.plume.*.slice_grid``). Drawn as coloured points on a log scale between
         ``c_range_mg_m3``; cells below its low end are left out, so the slice shows the plume
         and not a carpet of background points.
         """

@@ -44,7 +44,7 @@ from estimator.ukf import EstimatorConfig, WindEstimator
 from recording.rerun_log import AXES, RunRecorder
 from recording.sim_hook import wind_speed_from_deg
 from review.flight import FlightData
-from sitl.vehicle import VehicleParams, load_vehicle
+from vehicle.params import VehicleParams, load_vehicle
 
 ULOG_MAGIC = b"ULog\x01\x12\x35"
 C_AUTOPILOT = (44, 160, 44)

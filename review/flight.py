@@ -3,7 +3,7 @@
 :class:`FlightData` is produced by :func:`review.tlog.read_tlog` and :func:`review.ulog.read_ulog`
 and consumed by :mod:`review.convert`. Everything is SI, NED/FRD; wind is the air-mass
 velocity in NED (m/s); quaternions are ``[w, x, y, z]`` body FRD -> NED; rotor speeds are
-rad/s in the rotor order of ``sitl.rotor_model`` (1 front right, 2 rear right, 3 rear left,
+rad/s in the rotor order of ``vehicle.rotor_model`` (1 front right, 2 rear right, 3 rear left,
 4 front left). Times are seconds of the autopilot's boot clock (the project's SITL: simulation
 time), the same clock as the log's own time stamps; the Rerun ``sim_time`` timeline uses it.
 

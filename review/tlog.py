@@ -2,7 +2,7 @@
 
 Format (pymavlink, MAVProxy, QGroundControl, Mission Planner): a sequence of records, each an
 8-byte big-endian UNIX time in microseconds (when the frame was logged) followed by one
-MAVLink 1 or 2 frame. Frames are decoded with the project dialect (``sitl.link.dialect``:
+MAVLink 1 or 2 frame. Frames are decoded with the project dialect (``wire.dialect``:
 common.xml + ESC_INFO/ESC_STATUS), CRC-checked; the ArduPilot WIND message (168, not in
 common.xml) is decoded here by hand. Records that do not start with a frame are resynchronized
 on the next one; bad CRCs and unknown message ids are counted in the notes, never fatal.
@@ -50,8 +50,8 @@ from pymavlink.generator.mavcrc import x25crc
 
 from estimator.mavlink_adapter import ATT_TYPES, IMU_TYPES, PX4_QUAD_X, SITL_ORDER, VEL_TYPES, MavlinkWindAdapter
 from review.flight import MAX_BOOT_TIME_S, FlightData, Input, Series, make_input, pwm_to_fraction, state_changes
-from sitl.frames import euler_to_quat
-from sitl.link.dialect import mavlink
+from vehicle.frames import euler_to_quat
+from wire.dialect import mavlink
 
 MAGIC_V1 = 0xFE
 MAGIC_V2 = 0xFD

@@ -26,7 +26,7 @@ def _numba_cache_dir() -> str:
     """
     root = _Path(__file__).resolve().parent.parent
     digest = _hashlib.sha1()
-    for pkg in ("sitl", "estimator", "mission"):
+    for pkg in ("sitl", "vehicle", "estimator", "mission"):
         folder = root / pkg
         if folder.is_dir():
             for f in sorted(folder.rglob("*.py")):

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from sitl.controller import ControllerGains
-from sitl.flight_modes import FlightConfig, ItemKind, MissionItem
-from sitl.sensors import (
+from sitl.autopilot.controller import ControllerGains
+from sitl.autopilot.flight_modes import FlightConfig, ItemKind, MissionItem
+from sitl.world.sensors import (
     BaroConfig,
     EscConfig,
     GnssConfig,
@@ -29,7 +29,7 @@ from sitl.sensors import (
     SensorSuiteConfig,
     TemperatureConfig,
 )
-from sitl.wind import KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
+from sitl.world.wind import KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
 
 TURBULENCE_LEVELS = {"none": 0.0, "low": 0.5, "moderate": 1.0, "high": 2.0}
 
@@ -79,7 +79,7 @@ class Scenario:
     sensors: SensorSuiteConfig = field(default_factory=SensorSuiteConfig)
     gains: ControllerGains = field(default_factory=ControllerGains)
     flight: FlightConfig = field(default_factory=FlightConfig)
-    plume: dict[str, Any] | None = None  # raw [plume] table, parsed by sitl.plume_attach
+    plume: dict[str, Any] | None = None  # raw [plume] table, parsed by sitl.world.plume_attach
     source_path: str = ""
 
     def with_seed(self, seed: int) -> Scenario:
@@ -117,7 +117,7 @@ class Scenario:
 
 
 # --------------------------------------------------------------------------- parsing helpers
-# Shared with sitl.plume_attach (the [plume] table): every config error names the field and
+# Shared with sitl.world.plume_attach (the [plume] table): every config error names the field and
 # the allowed range the same way.
 def _num(name: str, value: Any, lo: float, hi: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -379,7 +379,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     if plume is not None and not isinstance(plume, dict):
         raise ScenarioError("[plume]: expected a table")
     if plume is not None:
-        from sitl.plume_attach import parse_plume_table  # lazy: plume_attach imports this module
+        from sitl.world.plume_attach import parse_plume_table  # lazy: plume_attach imports this module
 
         parse_plume_table(plume, mode_rate)
     vehicle = data.get("vehicle", "nasa-quad")

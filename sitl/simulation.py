@@ -19,15 +19,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from sitl.controller import GAIN_NAMES, N_CTRL_STATE, SP_FLAGS, SP_POS, control
-from sitl.dynamics import N_STATE, rk4_step
-from sitl.flight_modes import F_IDLE, FlightController, LandedState, Mode
-from sitl.frames import euler_to_quat, quat_to_dcm, tilt_angle
-from sitl.rotor_model import hover_rotor_speed
+from sitl.autopilot.controller import GAIN_NAMES, N_CTRL_STATE, SP_FLAGS, SP_POS, control
+from sitl.autopilot.flight_modes import F_IDLE, FlightController, LandedState, Mode
 from sitl.scenario import Scenario
-from sitl.sensors import BaroSample, GnssSample, MagSample, SensorSuite
-from sitl.vehicle import P_WMIN, VehicleParams, load_vehicle
-from sitl.wind import WindField, wind_velocity
+from sitl.world.dynamics import N_STATE, rk4_step
+from sitl.world.sensors import BaroSample, GnssSample, MagSample, SensorSuite
+from sitl.world.wind import WindField, wind_velocity
+from vehicle.frames import euler_to_quat, quat_to_dcm, tilt_angle
+from vehicle.params import P_WMIN, VehicleParams, load_vehicle
+from vehicle.rotor_model import hover_rotor_speed
 
 # Columns of a truth row, recorded at every IMU sample instant.
 T_TIME = 0
@@ -198,7 +198,7 @@ class Simulation:
         if autostart_route:
             self._start_route()
         if scenario.plume is not None:
-            from sitl.plume_attach import attach_plume
+            from sitl.world.plume_attach import attach_plume
 
             attach_plume(self)
 
@@ -395,7 +395,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ live tuning
     def gain(self, name: str) -> float:
-        """Current value of a controller gain (see :class:`sitl.controller.ControllerGains`)."""
+        """Current value of a controller gain (see :class:`sitl.autopilot.controller.ControllerGains`)."""
         return float(self._gains[GAIN_NAMES.index(name)])
 
     def set_gain(self, name: str, value: float) -> None:

@@ -1,4 +1,4 @@
-"""Tests for sitl.chem_sensor (concentrations in mg/m^3, times in s)."""
+"""Tests for sitl.world.chem_sensor (concentrations in mg/m^3, times in s)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sitl.chem_sensor import ChemicalSensor, ChemSensorConfig
+from sitl.world.chem_sensor import ChemicalSensor, ChemSensorConfig
 
 
 def _run(sensor: ChemicalSensor, conc: float, n: int, dt: float, t0: float = 0.0) -> list:

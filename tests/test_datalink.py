@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from link_support import free_port, scenario, udp_to
 
-from sitl.flight_modes import LandedState, Mode
+from sitl.autopilot.flight_modes import LandedState, Mode
 from sitl.link import SitlLink
-from sitl.link.dialect import mavlink as mav
 from sitl.simulation import Simulation
+from wire.dialect import mavlink as mav
 
 
 def _link() -> SitlLink:

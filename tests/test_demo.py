@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 from link_support import free_port, running, udp_to, wait_until
 
-from sitl.link.dialect import mavlink as mav
 from sitl.link.wire import Forwarder
+from wire.dialect import mavlink as mav
 
 ROOT = Path(__file__).resolve().parents[1]
 

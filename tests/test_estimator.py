@@ -18,12 +18,12 @@ from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.metrics import accuracy, moving_average, reconvergence_time
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
-from sitl.frames import euler_to_quat
-from sitl.link.dialect import mavlink
-from sitl.rotor_model import hover_rotor_speed
 from sitl.scenario import load_scenario
-from sitl.vehicle import load_vehicle
-from sitl.wind import SteadyWind, WindChange
+from sitl.world.wind import SteadyWind, WindChange
+from vehicle.frames import euler_to_quat
+from vehicle.params import load_vehicle
+from vehicle.rotor_model import hover_rotor_speed
+from wire.dialect import mavlink
 
 
 def _steady(wind, duration, changes=()):

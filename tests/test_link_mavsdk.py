@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from link_support import autopilot, first, free_port, running, udp_to
 
-from sitl.flight_modes import Mode
+from sitl.autopilot.flight_modes import Mode
 
 mavsdk = pytest.importorskip("mavsdk")
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk  # noqa: E402

@@ -15,8 +15,8 @@ import pytest
 from link_support import autopilot, first, free_port, running, scenario
 
 from sitl.link import TcpServerTransport
-from sitl.rotor_model import hover_rotor_speed
-from sitl.sensors import ned_to_geodetic
+from sitl.world.sensors import ned_to_geodetic
+from vehicle.rotor_model import hover_rotor_speed
 
 pytest.importorskip("mavsdk")
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk  # noqa: E402

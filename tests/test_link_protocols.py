@@ -15,11 +15,11 @@ from link_support import free_port, running, udp_to, wait_until
 from pymavlink import mavutil
 
 import sitl.link.mission_protocol as mission_protocol
-from sitl.controller import SP_POS, SP_YAW
-from sitl.flight_modes import Mode
+from sitl.autopilot.controller import SP_POS, SP_YAW
+from sitl.autopilot.flight_modes import Mode
 from sitl.link import SitlLink
-from sitl.link.dialect import mavlink as M  # noqa: N812  (the MAVLink 2 constants and message classes)
-from sitl.sensors import ned_to_geodetic
+from sitl.world.sensors import ned_to_geodetic
+from wire.dialect import mavlink as M  # noqa: N812  (the MAVLink 2 constants and message classes)
 
 
 class Peer:
@@ -312,7 +312,7 @@ def test_global_and_attitude_setpoints_are_converted(sitl: tuple[SitlLink, Peer]
     peer.mav.set_position_target_global_int_send(0, 1, 1, frame, pos_yaw, int(lat * 1e7), int(lon * 1e7), 5.0,
                                                  0, 0, 0, 0, 0, 0, 1.0, 0)  # fmt: skip
     wait_until(lambda: link.counters["setpoints"] >= 1, 2.0, "global setpoint")
-    sp = fc._offb_sp  # the offboard setpoint vector the flight controller stored (sitl.controller layout)
+    sp = fc._offb_sp  # the offboard setpoint vector the flight controller stored (sitl.autopilot.controller layout)
 
     assert sp[SP_POS:SP_POS + 3] == pytest.approx([7.0, -2.0, -5.0], abs=0.02)
     assert sp[SP_YAW] == pytest.approx(1.0)

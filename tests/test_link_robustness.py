@@ -17,8 +17,8 @@ from link_support import free_port, running, udp_to, wait_until
 from pymavlink import mavutil
 
 from sitl.link import TcpServerTransport
-from sitl.link.dialect import mavlink as M  # noqa: N812
-from sitl.sensors import ned_to_geodetic
+from sitl.world.sensors import ned_to_geodetic
+from wire.dialect import mavlink as M  # noqa: N812
 
 
 def _frame(msg: object, seq: int = 0) -> bytes:

@@ -29,11 +29,12 @@ import pytest
 from link_support import free_port
 
 from mission.runners.inprocess import SUCCESS_RADIUS_M
-from mission.runners.mavsdk_runner import MissionConfig, px4_mode_name, run_mission
+from mission.runners.mavsdk_runner import MissionConfig, run_mission
 from mission.safety import SafetyLimits
-from sitl.link.dialect import mavlink as mav
-from sitl.link.wire_names import STATE_PREFIX
 from sitl.scenario import load_scenario
+from wire.dialect import mavlink as mav
+from wire.names import STATE_PREFIX
+from wire.px4_modes import name as px4_mode_name
 
 pytest.importorskip("mavsdk")
 

@@ -1,4 +1,4 @@
-"""Tests for sitl.plume (NED metres, seconds, g/s, mg/m^3; wind = air-mass velocity NED)."""
+"""Tests for sitl.world.plume (NED metres, seconds, g/s, mg/m^3; wind = air-mass velocity NED)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sitl.plume import (
+from sitl.world.plume import (
     GaussianPlume,
     PlumeConfig,
     PuffPlume,
@@ -16,7 +16,7 @@ from sitl.plume import (
     gaussian_plume_concentration,
     make_plume,
 )
-from sitl.wind import KaimalTurbulence, SteadyWind, WindChange, WindField
+from sitl.world.wind import KaimalTurbulence, SteadyWind, WindChange, WindField
 
 U = 3.0  # m/s, wind toward north (from the south)
 SRC = (0.0, 0.0, -2.0)  # release 2 m above ground
@@ -103,7 +103,7 @@ def long_run_d():
 def test_long_time_average_converges_to_gaussian_plume(long_run_d) -> None:
     """Tolerance: centreline within +-40 % and effective sigma_y within +-25 % of the
     Gaussian plume of the same class at 20, 40, 80 m. The puff spread is calibrated to
-    Briggs within +-8 % (see sitl.plume); the rest is the sampling error of a 900 s
+    Briggs within +-8 % (see sitl.world.plume); the rest is the sampling error of a 900 s
     average of a meandering plume (meander periods up to ~130 s at 3 m/s)."""
     _, xs, ys, pts, samples = long_run_d
     mean = samples.mean(axis=0).reshape(len(xs), len(ys))

@@ -1,4 +1,4 @@
-"""Tests for sitl.plume_attach: [plume] parsing, the plume + chemical sensor in the lockstep
+"""Tests for sitl.world.plume_attach: [plume] parsing, the plume + chemical sensor in the lockstep
 simulation, and the plume scenarios (SI, NED; concentration in mg/m^3)."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sitl.chem_sensor import ChemReading
-from sitl.plume import PuffPlume
-from sitl.plume_attach import parse_plume_table
 from sitl.scenario import ScenarioError, builtin_scenarios, load_scenario, parse_scenario
 from sitl.simulation import Simulation
+from sitl.world.chem_sensor import ChemReading
+from sitl.world.plume import PuffPlume
+from sitl.world.plume_attach import parse_plume_table
 from windseek.cmd_sim import simulate
 
 

@@ -34,10 +34,10 @@ from pyulog import ULog
 
 from recording.read import RrdLog
 from review.convert import review
-from sitl.link.dialect import mavlink as M  # noqa: N812
 from sitl.scenario import parse_scenario
 from sitl.simulation import T_POS, T_QUAT, T_TIME, T_VEL, T_WIND, Simulation
 from windseek.cli import main as cli_main
+from wire.dialect import mavlink as M  # noqa: N812
 
 WIND = (-3.0, 1.0, 0.0)  # air-mass velocity NED of the test scenarios, m/s
 SPEED = 4.0

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from sitl.rotor_model import hover_rotor_speed, rotor_wrench, wrench
-from sitl.vehicle import FT, FT_LBF, LBF, MIX, load_vehicle
+from vehicle.params import FT, FT_LBF, LBF, MIX, load_vehicle
+from vehicle.rotor_model import hover_rotor_speed, rotor_wrench, wrench
 
 # Table 2, paper units (ft, slug, s).
 RHO, R, B, V0 = 0.002377, 0.5833, 0.6681, 17.43

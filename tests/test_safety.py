@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from mission.runners.mavsdk_runner import px4_mode_name
 from mission.safety import EstimatorWatch, LinkWatchdog, SafetyLimits, Supervisor
 from windseek.cli import main as cli_main
+from wire.px4_modes import name as px4_mode_name
 
 HOME = np.array([10.0, -5.0, 0.0])
 LIMITS = replace(SafetyLimits(), box_min_ned=(-20.0, -10.0, -30.0), box_max_ned=(40.0, 10.0, 0.0),

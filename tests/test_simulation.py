@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from sitl.dynamics import derivative
-from sitl.flight_modes import LandedState, Mode
+from sitl.autopilot.flight_modes import LandedState, Mode
 from sitl.scenario import load_scenario, parse_scenario
 from sitl.simulation import T_POS, T_QUAT, Simulation
-from sitl.vehicle import load_vehicle
+from sitl.world.dynamics import derivative
+from vehicle.params import load_vehicle
 
 
 def _scenario(**over):

@@ -1,4 +1,4 @@
-"""Tests for sitl.wind (SI units, NED world frame, wind = air-mass velocity in NED)."""
+"""Tests for sitl.world.wind (SI units, NED world frame, wind = air-mass velocity in NED)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from numba import njit
 from scipy import signal
 
-from sitl.wind import (
+from sitl.world.wind import (
     KaimalTurbulence,
     SteadyWind,
     WindChange,

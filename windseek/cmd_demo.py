@@ -20,7 +20,7 @@ truth. Files, beside each other in ``--logs`` (default ``logs/``)::
     <UTC time>-<scenario>-<strategy>.{sitl,estimator,mission}.log   each process's own output
 
 The mission publishes its strategy state (STATUSTEXT ``state: NAME``) and its declaration
-(NAMED_VALUE_FLOAT SRC_N/E/D/CONF, :mod:`sitl.link.wire_names`) over MAVLink itself; the SITL records
+(NAMED_VALUE_FLOAT SRC_N/E/D/CONF, :mod:`wire.names`) over MAVLink itself; the SITL records
 them (.rrd, .tlog, the exit summary's ``declared``). The demo only shows the mission's lines.
 Exit status: 0 source found, 1 not found, 2 a process failed (its last lines shown).
 """
@@ -147,7 +147,7 @@ class Observer(threading.Thread):
 
     def __init__(self) -> None:
         super().__init__(name="demo-observer", daemon=True)
-        from sitl.link.dialect import mavlink as mav
+        from wire.dialect import mavlink as mav
 
         self.mav = mav
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -188,7 +188,7 @@ class Observer(threading.Thread):
             self.t = m.time_boot_ms * 1e-3
             self.pos = [m.x, m.y, m.z]
         elif mtype == "HEARTBEAT" and m.get_srcComponent() == 1:
-            from mission.runners.mavsdk_runner import px4_mode_name
+            from wire.px4_modes import name as px4_mode_name
 
             armed = bool(m.base_mode & 128)
             if armed and not self.armed:

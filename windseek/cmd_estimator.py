@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 
 from estimator.ground_gate import GroundGate, withheld
-from sitl.link.wire import json_safe
-from sitl.link.wire_names import ESTIMATOR_COMPONENT
+from wire.jsonsafe import json_safe
+from wire.names import ESTIMATOR_COMPONENT
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
@@ -121,7 +121,7 @@ class LiveEstimator:
     def __init__(self, args: argparse.Namespace) -> None:
         from estimator.mavlink_adapter import PX4_QUAD_X, SITL_ORDER, MavlinkWindAdapter
         from estimator.ukf import WindEstimator
-        from sitl.vehicle import load_vehicle
+        from vehicle.params import load_vehicle
 
         if args.imu_average < 1:
             raise ValueError(f"--imu-average {args.imu_average}: must be an integer >= 1")
@@ -298,7 +298,7 @@ def _request_rates(conn: Any, live: LiveEstimator, target: tuple[int, int], mode
 def run(args: argparse.Namespace) -> int:
     from pymavlink import mavutil
 
-    from sitl.link.dialect import mavlink as dialect
+    from wire.dialect import mavlink as dialect
 
     # The windseek dialect (common + ESC_INFO/ESC_STATUS) for every connection made below.
     mavutil.mavlink = dialect

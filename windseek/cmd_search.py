@@ -8,6 +8,7 @@ import math
 
 from mission.strategies import STRATEGIES
 from mission.wind_source import WIND_MODES
+from wire.jsonsafe import json_safe
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,16 +41,6 @@ def _fmt(v: float, unit: str = "", nd: int = 1) -> str:
     return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{nd}f}{unit}"
 
 
-def _clean(o: object) -> object:
-    """JSON-safe copy: NaN/inf -> null (strict JSON has no NaN)."""
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: _clean(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [_clean(v) for v in o]
-    return o
-
 
 def run(args: argparse.Namespace) -> int:
     from mission.evaluate import run_batch, summarize
@@ -62,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         out = dict(s)
         out["results"] = [r.to_dict() for r in results]
-        print(json.dumps(_clean(out), allow_nan=False))
+        print(json.dumps(json_safe(out), allow_nan=False))
         return 0
     print(f"{s['strategy']} with {s['wind']} wind on {s['scenario']}: {s['trials']} trials")
     print(f"  success rate: {100 * s['success_rate']:.0f} % ({s['successes']}/{s['trials']} declared within 5 m)")

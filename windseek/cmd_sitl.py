@@ -14,10 +14,10 @@ import signal
 import sys
 
 from sitl.link import SerialTransport, SitlLink, TcpServerTransport, UdpTransport
-from sitl.link.dialect import mavlink
 from sitl.link.transports import parse_host_port, parse_serial
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
+from wire.dialect import mavlink
 
 DEFAULT_UDP_PEERS = ["127.0.0.1:14540", "127.0.0.1:14550"]
 

@@ -27,7 +27,7 @@ from mission.strategies import make_strategy
 from mission.strategies.base import Observation, Setpoint
 from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import make_wind_source
-from sitl.flight_modes import LandedState, Mode
+from sitl.autopilot.flight_modes import LandedState, Mode
 from sitl.scenario import Scenario, load_scenario
 from sitl.simulation import Simulation
 

@@ -18,7 +18,7 @@ chemical reading come through MAVSDK's ``mavlink_direct`` plugin as JSON fields 
 - mode, armed and landed state: HEARTBEAT (PX4 custom modes), EXTENDED_SYS_STATE; the
   autopilot's STATUSTEXT lines are echoed.
 
-What the runner publishes (:mod:`sitl.link.wire_names`, through ``mavlink_direct``, from the
+What the runner publishes (:mod:`wire.names`, through ``mavlink_direct``, from the
 MAVSDK ground-station identity): the strategy state on every change as STATUSTEXT ``state: NAME``,
 and the declaration once as NAMED_VALUE_FLOAT ``SRC_N``, ``SRC_E``, ``SRC_D`` (m, NED, local
 frame), then ``SRC_CONF`` (0..1). ``windseek sitl --rrd/--exit-summary`` and any tlog record them.
@@ -62,16 +62,12 @@ from mission.strategies import make_strategy
 from mission.strategies.base import Observation, WindInfo
 from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import UpwindFilter
-from sitl.link.wire import json_safe
-from sitl.link.wire_names import declaration_fields, publish, state_fields
+from wire import px4_modes
+from wire.jsonsafe import json_safe
+from wire.names import declaration_fields, publish, state_fields
 
 WIND_MODES = ("estimated", "mavlink", "none")
 
-# PX4 custom modes (px4_custom_mode.h): main mode in bits 16-23, auto sub mode in bits 24-31.
-PX4_MAIN_OFFBOARD, PX4_MAIN_AUTO = 6, 4
-PX4_AUTO_NAMES = {1: "AUTO.READY", 2: "AUTO.TAKEOFF", 3: "AUTO.LOITER", 4: "AUTO.MISSION", 5: "AUTO.RTL",
-                  6: "AUTO.LAND"}  # fmt: skip
-MAV_MODE_FLAG_SAFETY_ARMED = 128
 
 DIRECT_MESSAGES = ("HIL_SENSOR", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "ESC_STATUS",
                    "NAMED_VALUE_FLOAT", "HEARTBEAT", "EXTENDED_SYS_STATE", "STATUSTEXT")  # fmt: skip
@@ -176,15 +172,6 @@ class _Msg:
         return self._mtype
 
 
-def px4_mode_name(custom_mode: int) -> str:
-    """PX4 flight mode name of a HEARTBEAT custom_mode word."""
-    main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
-    if main == PX4_MAIN_OFFBOARD:
-        return "OFFBOARD"
-    if main == PX4_MAIN_AUTO:
-        return PX4_AUTO_NAMES.get(sub, f"AUTO.{sub}")
-    return {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 5: "ACRO", 7: "STABILIZED"}.get(main, f"MODE{main}")
-
 
 class VehicleState:
     """The latest telemetry (filled by the mavlink_direct handlers)."""
@@ -225,7 +212,7 @@ class MavsdkMission:
         self.estimator: WindEstimator | None = None
         self.adapter: MavlinkWindAdapter | None = None
         if cfg.wind == "estimated":
-            from sitl.vehicle import load_vehicle
+            from vehicle.params import load_vehicle
 
             self._vehicle_params = load_vehicle(cfg.vehicle)
             self.estimator = WindEstimator(self._vehicle_params)
@@ -302,8 +289,8 @@ class MavsdkMission:
             if int(f.get("autopilot", 8)) == 8:  # MAV_AUTOPILOT_INVALID: a ground station or companion
                 return
             self._sysid = int(m.system_id)
-            st.armed = bool(int(f["base_mode"]) & MAV_MODE_FLAG_SAFETY_ARMED)
-            mode = px4_mode_name(int(f["custom_mode"]))
+            st.armed = bool(int(f["base_mode"]) & px4_modes.SAFETY_ARMED)
+            mode = px4_modes.name(int(f["custom_mode"]))
             if mode != st.mode and st.mode:
                 self.cfg.say(f"mission: autopilot mode {st.mode} -> {mode}")
             st.mode = mode
@@ -597,7 +584,7 @@ class MavsdkMission:
 
     async def _publish(self) -> None:
         """Send what the ticks queued (strategy state changes, the declaration) over MAVLink:
-        STATUSTEXT ``state: NAME`` and NAMED_VALUE_FLOAT SRC_N/E/D/CONF (:mod:`sitl.link.wire_names`),
+        STATUSTEXT ``state: NAME`` and NAMED_VALUE_FLOAT SRC_N/E/D/CONF (:mod:`wire.names`),
         so a ground station, a tlog and ``windseek sitl --rrd`` see them. A failed send is said once
         and never stops the mission."""
         if not self._outbox or self.direct is None:

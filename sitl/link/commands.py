@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.flight_modes import Mode
-from sitl.link.dialect import mavlink as mav
+from sitl.autopilot.flight_modes import Mode
 from sitl.link.endpoint import Link, targets_us
 from sitl.link.telemetry import mode_from_px4
-from sitl.sensors import geodetic_to_ned
+from sitl.world.sensors import geodetic_to_ned
+from wire.dialect import mavlink as mav
 
 if TYPE_CHECKING:
     from sitl.link.runner import SitlLink

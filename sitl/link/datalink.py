@@ -7,7 +7,7 @@ loss the action ``NAV_DLL_ACT`` runs once (PX4 values: 0 disabled, 1 hold, 2 ret
 3 land), with a STATUSTEXT; a HEARTBEAT after the loss re-arms it ("Data link regained"), and,
 as on PX4, the mode is not changed back.
 
-Together with the offboard-loss fallback of :mod:`sitl.flight_modes` (no setpoint for
+Together with the offboard-loss fallback of :mod:`sitl.autopilot.flight_modes` (no setpoint for
 ``COM_OF_LOSS_T`` = 1 s: hold), a vehicle whose offboard controller disappears with the link
 *holds* first and then, ``COM_DL_LOSS_T`` after the last heartbeat, *lands* (the default here).
 A client that never sends a HEARTBEAT (a bare pymavlink script) never establishes the link and

@@ -15,8 +15,8 @@ import select
 from collections import Counter
 from collections.abc import Callable
 
-from sitl.link.dialect import mavlink
 from sitl.link.transports import Transport, UdpTransport
+from wire.dialect import mavlink
 
 log = logging.getLogger(__name__)
 

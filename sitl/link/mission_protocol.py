@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.flight_modes import ItemKind, MissionItem, Mode
-from sitl.link.dialect import mavlink as mav
+from sitl.autopilot.flight_modes import ItemKind, MissionItem, Mode
 from sitl.link.endpoint import Link, targets_us
 from sitl.link.geofence import Geofence
-from sitl.sensors import geodetic_to_ned
+from sitl.world.sensors import geodetic_to_ned
+from wire.dialect import mavlink as mav
 
 if TYPE_CHECKING:
     from sitl.link.runner import SitlLink

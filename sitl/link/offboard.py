@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.frames import quat_to_euler
-from sitl.link.dialect import mavlink as mav
 from sitl.link.endpoint import Link, targets_us
-from sitl.sensors import geodetic_to_ned
+from sitl.world.sensors import geodetic_to_ned
+from vehicle.frames import quat_to_euler
+from wire.dialect import mavlink as mav
 
 if TYPE_CHECKING:
     from sitl.link.runner import SitlLink

@@ -2,9 +2,9 @@
 
 Every parameter is a MAV_PARAM_TYPE_REAL32. Names (at most 16 characters):
 
-- ``CTL_<GAIN>``: the controller gains and limits of :class:`sitl.controller.ControllerGains`
+- ``CTL_<GAIN>``: the controller gains and limits of :class:`sitl.autopilot.controller.ControllerGains`
   (e.g. ``CTL_POS_P_XY``), SI units and rad as documented there; live.
-- PX4 names for the flight-mode settings of :class:`sitl.flight_modes.FlightConfig`:
+- PX4 names for the flight-mode settings of :class:`sitl.autopilot.flight_modes.FlightConfig`:
   ``MIS_TAKEOFF_ALT`` (m), ``MPC_TKO_SPEED``, ``MPC_LAND_SPEED``, ``MPC_XY_CRUISE`` (m/s),
   ``RTL_RETURN_ALT`` (m), ``COM_OF_LOSS_T`` (s, offboard loss timeout), ``COM_DISARM_LAND`` (s).
 - ``GF_ACTION`` (0 none, 1 warning, 2 hold, 3 return, 4 land): what a geofence breach does.
@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.controller import GAIN_NAMES
-from sitl.link.dialect import mavlink
+from sitl.autopilot.controller import GAIN_NAMES
+from wire.dialect import mavlink
 
 if TYPE_CHECKING:
     from sitl.link.runner import SitlLink

@@ -16,10 +16,9 @@ import math
 import threading
 import time
 
-from sitl.flight_modes import ItemKind, Mode
+from sitl.autopilot.flight_modes import ItemKind, Mode
 from sitl.link.commands import CommandHandler
 from sitl.link.datalink import DataLinkFailsafe
-from sitl.link.dialect import mavlink as mav
 from sitl.link.endpoint import Endpoint, Link, targets_us
 from sitl.link.geofence import Geofence
 from sitl.link.mission_protocol import MissionProtocol
@@ -29,6 +28,7 @@ from sitl.link.streams import StreamScheduler
 from sitl.link.telemetry import Telemetry
 from sitl.link.transports import Transport
 from sitl.simulation import Simulation
+from wire.dialect import mavlink as mav
 
 log = logging.getLogger(__name__)
 

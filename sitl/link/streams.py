@@ -16,8 +16,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from sitl.link.dialect import mavlink
 from sitl.link.telemetry import Telemetry
+from wire.dialect import mavlink
 
 
 @dataclass

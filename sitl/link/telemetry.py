@@ -23,56 +23,31 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.flight_modes import Mode
-from sitl.frames import quat_to_euler
-from sitl.link.dialect import mavlink
-from sitl.rotor_model import hover_rotor_speed
-from sitl.sensors import ned_to_geodetic
+from sitl.autopilot.flight_modes import Mode
+from sitl.world.sensors import ned_to_geodetic
+from vehicle.frames import quat_to_euler
+from vehicle.rotor_model import hover_rotor_speed
+from wire import px4_modes
+from wire.dialect import mavlink
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 
-# PX4 custom main modes and auto sub modes (px4_custom_mode.h).
-PX4_MAIN_POSCTL = 3
-PX4_MAIN_AUTO = 4
-PX4_MAIN_OFFBOARD = 6
-PX4_AUTO_READY, PX4_AUTO_TAKEOFF, PX4_AUTO_LOITER, PX4_AUTO_MISSION, PX4_AUTO_RTL, PX4_AUTO_LAND = 1, 2, 3, 4, 5, 6
-
-MODE_TO_PX4: dict[Mode, tuple[int, int]] = {
-    Mode.HOLD: (PX4_MAIN_AUTO, PX4_AUTO_LOITER),
-    Mode.POSITION: (PX4_MAIN_POSCTL, 0),
-    Mode.TAKEOFF: (PX4_MAIN_AUTO, PX4_AUTO_TAKEOFF),
-    Mode.OFFBOARD: (PX4_MAIN_OFFBOARD, 0),
-    Mode.MISSION: (PX4_MAIN_AUTO, PX4_AUTO_MISSION),
-    Mode.LAND: (PX4_MAIN_AUTO, PX4_AUTO_LAND),
-    Mode.RTL: (PX4_MAIN_AUTO, PX4_AUTO_RTL),
-}
-
-
 def px4_custom_mode(mode: Mode) -> int:
-    """PX4 custom_mode word: main mode << 16 | sub mode << 24."""
-    main, sub = MODE_TO_PX4[mode]
-    return (main << 16) | (sub << 24)
+    """PX4 custom_mode word of a built-in autopilot mode (the Mode values are PX4's names)."""
+    return px4_modes.encode(*px4_modes.from_name(mode.value))
 
 
 def mode_from_px4(main: int, sub: int) -> Mode | None:
     """The mode a DO_SET_MODE (custom main/sub) asks for, or None if not supported."""
-    if main == PX4_MAIN_OFFBOARD:
-        return Mode.OFFBOARD
-    if main == PX4_MAIN_POSCTL:
-        return Mode.POSITION
-    if main == PX4_MAIN_AUTO:
-        return {
-            PX4_AUTO_READY: Mode.HOLD,
-            PX4_AUTO_TAKEOFF: Mode.TAKEOFF,
-            PX4_AUTO_LOITER: Mode.HOLD,
-            PX4_AUTO_MISSION: Mode.MISSION,
-            PX4_AUTO_RTL: Mode.RTL,
-            PX4_AUTO_LAND: Mode.LAND,
-        }.get(sub)
-    return None
+    if main == px4_modes.MAIN_AUTO and sub == px4_modes.AUTO_READY:
+        return Mode.HOLD
+    try:
+        return Mode(px4_modes.name(px4_modes.encode(main, sub)))
+    except ValueError:
+        return None
 
 
 # SYS_STATUS sensor bits (MAV_SYS_STATUS_SENSOR).
@@ -162,12 +137,12 @@ class Telemetry:
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
         if fc.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-        main, _ = MODE_TO_PX4[fc.mode]
-        if main == PX4_MAIN_AUTO:
+        main, _ = px4_modes.from_name(fc.mode.value)
+        if main == px4_modes.MAIN_AUTO:
             base |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
-        elif main == PX4_MAIN_OFFBOARD:
+        elif main == px4_modes.MAIN_OFFBOARD:
             base |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
-        elif main == PX4_MAIN_POSCTL:
+        elif main == px4_modes.MAIN_POSCTL:
             base |= mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
         if fc.crashed:
             status = mavlink.MAV_STATE_EMERGENCY

@@ -16,7 +16,7 @@ all run in the link's own thread (the endpoint's ``rx_hooks`` and the simulation
 - :class:`WireRecorder` (``--rrd PATH``): the simulation's truth through
   :func:`recording.sim_hook.record_simulation`, plus what only the wire knows: WIND_COV
   (estimate, +-2 sigma band, speed and from-direction raw and low-passed, the estimate arrow at
-  the vehicle), the mission's STATUSTEXT lines and declared source (:mod:`sitl.link.wire_names`),
+  the vehicle), the mission's STATUSTEXT lines and declared source (:mod:`wire.names`),
   the geofence box given on the command line, the chemical detection threshold.
 - :class:`TruthSummary` (``--exit-summary PATH``): a JSON file written at shutdown with the
   figures only the simulator can compute: RMSE of the received WIND_COV estimates against the
@@ -42,7 +42,8 @@ import numpy as np
 
 from sitl.link.endpoint import COMPONENT_ID, SYSTEM_ID, Link
 from sitl.link.transports import UdpTransport
-from sitl.link.wire_names import MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
+from wire.jsonsafe import json_safe
+from wire.names import MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
 
 if TYPE_CHECKING:
     from recording.rerun_log import RunRecorder
@@ -240,16 +241,6 @@ class TruthSummary:
         """Write the summary (at shutdown)."""
         self.write()
 
-
-def json_safe(o: Any) -> Any:
-    """``o`` with non-finite floats replaced by None (strict JSON), recursively."""
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: json_safe(v) for k, v in o.items()}
-    if isinstance(o, list | tuple):
-        return [json_safe(v) for v in o]
-    return o
 
 
 class WireRecorder:

@@ -1,6 +1,6 @@
 """Flight modes of the built-in autopilot: arming, take-off, hold, offboard, waypoint mission,
 land and return-to-launch. Plain synchronous Python run at the mode rate (50 Hz); it writes
-the setpoint vector read by the numba controller (``sitl.controller``).
+the setpoint vector read by the numba controller (``sitl.autopilot.controller``).
 
 NED world frame, SI units, yaw in rad (0 = north, positive clockwise seen from above).
 Behaviour follows PX4 where the two can be compared: take-off climbs at 1.5 m/s and then
@@ -17,7 +17,7 @@ from enum import Enum, IntEnum
 
 import numpy as np
 
-from sitl.controller import (
+from sitl.autopilot.controller import (
     F_ACC,
     F_ATT,
     F_OFF,

@@ -1,6 +1,6 @@
 """Regenerate ``windseek.py`` (the dialect's Python module) from ``windseek.xml`` with pymavlink's mavgen.
 
-Run ``python -m sitl.link.dialect.generate`` after editing the XML; the generated module is committed
+Run ``python -m wire.dialect.generate`` after editing the XML; the generated module is committed
 so importing the package never needs a code generator at run time.
 """
 

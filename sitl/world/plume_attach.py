@@ -24,7 +24,7 @@ TOML format (every key optional except ``sources``; defaults shown)::
     #   start_s [s] (default -warmup_s: emitting since the warm-up began; start_s = 0
     #   switches the source on at t = 0, so the warm-up forms no plume), stop_s [s] (optional)
 
-    [plume.sensor]              # sitl.chem_sensor.ChemSensorConfig fields
+    [plume.sensor]              # sitl.world.chem_sensor.ChemSensorConfig fields
     time_constant_s = 0.5       # [s]
     noise_std_mg_m3 = 0.01      # [mg/m^3]
     detection_limit_mg_m3 = 0.05
@@ -57,9 +57,9 @@ from collections import deque
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
-from sitl.chem_sensor import ChemicalSensor, ChemReading, ChemSensorConfig
-from sitl.plume import PLUME_MODELS, STABILITY_CLASSES, GaussianPlume, PlumeConfig, PuffPlume, Source, make_plume
 from sitl.scenario import ScenarioError, _num, _table, _vec3
+from sitl.world.chem_sensor import ChemicalSensor, ChemReading, ChemSensorConfig
+from sitl.world.plume import PLUME_MODELS, STABILITY_CLASSES, GaussianPlume, PlumeConfig, PuffPlume, Source, make_plume
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation

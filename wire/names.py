@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 
-from sitl.link.dialect import mavlink as mav
+from wire.dialect import mavlink as mav
 
 STATE_PREFIX = "state: "
 SRC_NAMES = ("SRC_N", "SRC_E", "SRC_D")

@@ -1,6 +1,6 @@
 """Vehicle parameters: load the one vehicle file, convert the paper's units to SI once.
 
-The file (``sitl/vehicles/nasa_quad.toml`` by default) holds Table 2 in the paper's English
+The file (``vehicle/vehicles/nasa_quad.toml`` by default) holds Table 2 in the paper's English
 units, Table 5 as printed, and the values the paper does not give (marked as assumptions).
 Everything downstream works in SI: m, s, kg, rad, N, N*m. The numba kernels take the
 parameters as one flat ``float64`` array indexed by the ``P_*`` constants below.
@@ -170,7 +170,7 @@ def _vehicle_path(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
     if p.suffix == ".toml" and p.exists():
         return p
-    builtin = resources.files("sitl") / "vehicles" / f"{str(name_or_path).replace('-', '_')}.toml"
+    builtin = resources.files("vehicle") / "vehicles" / f"{str(name_or_path).replace('-', '_')}.toml"
     if builtin.is_file():
         return Path(str(builtin))
     raise ValueError(f"vehicle: no vehicle file {name_or_path!r} (a .toml path or 'nasa-quad')")

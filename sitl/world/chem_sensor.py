@@ -1,7 +1,7 @@
 """Chemical (gas concentration) sensor model for the vehicle.
 
-Conventions: SI units (s, Hz); concentration in mg/m^3, the unit of ``sitl.plume``.
-The sensor is a point sensor at the vehicle position (NED, see ``sitl.plume``); the
+Conventions: SI units (s, Hz); concentration in mg/m^3, the unit of ``sitl.world.plume``.
+The sensor is a point sensor at the vehicle position (NED, see ``sitl.world.plume``); the
 caller evaluates the true concentration there and passes it in.
 
 Model, per reading at time t:

@@ -68,7 +68,7 @@ puffs drifting across the frozen field, and the field has a finite number of mod
 so the realised spread is close to, not exactly, the design; tests compare the
 long-time average with the Gaussian plume within a stated tolerance.
 
-Turbulence in the wind model (Kaimal) moves puffs too. ``sitl.wind`` samples it
+Turbulence in the wind model (Kaimal) moves puffs too. ``sitl.world.wind`` samples it
 Taylor-frozen, so a puff riding with the mean wind keeps the same turbulent velocity
 for its whole life: it acts like meander with an infinite correlation time. By default
 (``subtract_wind_turbulence``) its crosswind / vertical variance is removed from the
@@ -127,7 +127,7 @@ _TWO_PI_POW_1_5 = (2.0 * math.pi) ** 1.5
 
 
 class WindLike(Protocol):
-    """What the plume needs from a wind model (e.g. ``sitl.wind.WindField``)."""
+    """What the plume needs from a wind model (e.g. ``sitl.world.wind.WindField``)."""
 
     def mean(self, t: float, pos_ned: np.ndarray) -> np.ndarray:
         """Steady air-mass velocity NED [m/s] at ``pos_ned`` (3,), no turbulence."""
@@ -411,7 +411,7 @@ def _axis_calibration(
 def _frozen_turbulence_variances(wind: object) -> tuple[float, float]:
     """(crosswind, vertical) variance [(m/s)^2] of Taylor-frozen turbulence in ``wind``.
 
-    Duck-typed on ``sitl.wind.WindField``; any other wind model counts as turbulence-free.
+    Duck-typed on ``sitl.world.wind.WindField``; any other wind model counts as turbulence-free.
     Turbulence sampled as a pure time series (taylor=False) decorrelates within seconds
     along a puff path and is left in (it adds a little small-scale spread).
     """

@@ -7,7 +7,7 @@ State vector ``x`` (17,), SI:
   10:13 body rates [p, q, r], FRD, rad/s
   13:17 rotor speeds Omega_1..4, rad/s (first-order lag to the command, clipped to limits)
 
-Forces: the rotor model of Eq. 46 (``sitl.rotor_model``) evaluated at the airspeed
+Forces: the rotor model of Eq. 46 (``vehicle.rotor_model``) evaluated at the airspeed
 V_a = R^T (V - W), with W the air-mass velocity (NED), plus gravity. The paper writes the
 translational equation in body axes (Eq. 3); integrating the NED velocity is the same motion
 and keeps the quaternion the only rotating quantity.
@@ -20,9 +20,9 @@ import math
 import numpy as np
 from numba import njit
 
-from sitl.frames import quat_to_dcm
-from sitl.rotor_model import rotor_wrench
-from sitl.vehicle import P_G, P_IXX, P_IYY, P_IZZ, P_MASS, P_TAU, P_WMAX, P_WMIN
+from vehicle.frames import quat_to_dcm
+from vehicle.params import P_G, P_IXX, P_IYY, P_IZZ, P_MASS, P_TAU, P_WMAX, P_WMIN
+from vehicle.rotor_model import rotor_wrench
 
 N_STATE = 17
 IX_POS, IX_VEL, IX_QUAT, IX_RATES, IX_ROTORS = 0, 3, 6, 10, 13

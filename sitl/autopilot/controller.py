@@ -3,7 +3,7 @@ allocation to rotor speeds through the inverse of the Eq. 42 mixing (numba, runs
 
 Frames and units: NED world, FRD body, SI. The controller reads the true state (the SITL
 stands in for the autopilot's own state estimator; documented assumption) and a setpoint
-vector written by the mode logic (``sitl.flight_modes``):
+vector written by the mode logic (``sitl.autopilot.flight_modes``):
 
   SP_POS (3)  position setpoint, NED, m
   SP_VEL (3)  velocity feed-forward / setpoint, NED, m/s
@@ -26,21 +26,8 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 from numba import njit
 
-from sitl.frames import dcm_to_quat, quat_mul
-from sitl.rotor_model import (
-    _CL_P_DT,
-    _CL_T0,
-    _CL_TV,
-    _CM_Q_DT,
-    _CM_T0,
-    _CM_TV,
-    _CN_Q0,
-    _CN_QV,
-    _CN_R_DT,
-    _CZ_T0,
-    _CZ_TV,
-)
-from sitl.vehicle import (
+from vehicle.frames import dcm_to_quat, quat_mul
+from vehicle.params import (
     P_B,
     P_G,
     P_IXX,
@@ -52,6 +39,19 @@ from sitl.vehicle import (
     P_V0,
     P_WMAX,
     P_WMIN,
+)
+from vehicle.rotor_model import (
+    _CL_P_DT,
+    _CL_T0,
+    _CL_TV,
+    _CM_Q_DT,
+    _CM_T0,
+    _CM_TV,
+    _CN_Q0,
+    _CN_QV,
+    _CN_R_DT,
+    _CZ_T0,
+    _CZ_TV,
 )
 
 SP_POS, SP_VEL, SP_ACC, SP_YAW, SP_YAWRATE, SP_FLAGS, SP_ATT, SP_THRUST = 0, 3, 6, 9, 10, 11, 12, 16

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sitl.vehicle import (
+from vehicle.params import (
     MIX,
     P_B,
     P_COEF0,

@@ -1,0 +1,11 @@
+"""What crosses a MAVLink link, shared by every program of the project (no simulator inside).
+
+The SITL, the estimator, the mission runner and the log review all speak the same wire; its
+pieces live here so none of them imports another's internals:
+
+- ``dialect``: the windseek MAVLink 2 dialect (common.xml + ESC_INFO/ESC_STATUS), generated module.
+- ``names``: the names the mission and the SITL's recorder use on the wire (STATUSTEXT states,
+  the declared source as NAMED_VALUE_FLOAT, component ids).
+- ``px4_modes``: PX4's custom-mode word (HEARTBEAT.custom_mode, DO_SET_MODE) and mode names.
+- ``jsonsafe``: strict-JSON cleaning of result dictionaries (NaN -> null).
+"""
