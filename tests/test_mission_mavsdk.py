@@ -173,7 +173,7 @@ async def test_mavsdk_mission_finds_the_source_and_lands_on_it(observer: Observe
     wall = time.monotonic() - wall0
     print("\n".join(lines))
     print(res.to_dict())
-    src = np.asarray(load_scenario(SCENARIO).plume["sources"][0]["position_ned"], dtype=float)  # the truth
+    src = np.asarray(load_scenario(SCENARIO).plume.plume.sources[0].position_ned, dtype=float)  # the truth
     assert res.cause == "declared", res.reasons
     assert res.reasons == []  # no safety stop, no clamped altitude
     err = float(np.hypot(*(np.asarray(res.declared_ned[0:2]) - src[0:2])))

@@ -114,7 +114,7 @@ def test_wind_truth_matches_the_wind_field(sim_run: tuple[Simulation, RrdLog]) -
 def test_chem_readings_match_the_sensor(sim_run: tuple[Simulation, RrdLog]) -> None:
     sim, log = sim_run
     t, c = log.scalars("chem/value")
-    model = sim.plume_model
+    model = sim.chem
     assert len(c) == model.n_samples == 150  # every 10 Hz reading, none dropped or doubled
     np.testing.assert_allclose(np.diff(t), 0.1, atol=1e-9)
     assert (c >= 0.0).all()
@@ -141,7 +141,7 @@ def test_plume_slice_and_puffs(sim_run: tuple[Simulation, RrdLog]) -> None:
     t_p, puffs = log.column("world/plume/puffs", "Points3D:positions")
     _, radii = log.column("world/plume/puffs", "Points3D:radii")
     assert len(t_p) == 30
-    assert len(puffs[-1]) == sim.plume_model.n_puffs
+    assert len(puffs[-1]) == sim.chem.n_puffs
     assert min(radii[-1]) > 0.0
     _, src = log.column("world/sources/true", "Points3D:positions")
     np.testing.assert_allclose(src[0], [[60.0, 0.0, -2.0]])
