@@ -144,7 +144,7 @@ def _parse_wind(tbl: dict[str, Any]) -> SteadyWind:
     profile = tbl.get("profile", "uniform")
     if profile not in ("uniform", "log"):
         raise ScenarioError(f"wind.profile = {profile!r}: allowed values are 'uniform', 'log'")
-    kw = {
+    kw: dict[str, Any] = {
         "profile": profile,
         "reference_height_m": number("wind.reference_height_m", tbl.get("reference_height_m", 10.0), 0.1, 1000.0),
         "roughness_length_m": number("wind.roughness_length_m", tbl.get("roughness_length_m", 0.1), 1e-4, 5.0),
@@ -206,7 +206,7 @@ def _parse_turbulence(tbl: dict[str, Any], wind: SteadyWind, duration: float) ->
             f"intensity, intensity_class ('A', 'B', 'C'); got {given or 'none'}"
         )
     u_mean = math.hypot(wind.velocity_ned[0], wind.velocity_ned[1])
-    kw = {
+    kw: dict[str, Any] = {
         "height_m": number("turbulence.height_m", tbl.get("height_m", 10.0), 0.5, 500.0),
         "taylor": boolean("turbulence.taylor", tbl.get("taylor", True)),
         "sample_rate_hz": number("turbulence.sample_rate_hz", tbl.get("sample_rate_hz", 50.0), 1.0, 1000.0),

@@ -43,6 +43,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
+
 SUCCESS_RADIUS_M = 5.0
 
 
@@ -99,6 +101,7 @@ class Proc:
 
     def _read(self) -> None:
         stream = self.popen.stderr if self._stdout else self.popen.stdout
+        assert stream is not None  # both pipes are opened in __init__
         for line in stream:
             line = line.rstrip("\n")
             self._log.write(line + "\n")
@@ -207,7 +210,7 @@ class Observer(threading.Thread):
         n, e, d = self.pos
         s = f"t {self.t:6.1f} s  {self.mode or '-':12s} N {n:+6.1f} E {e:+6.1f} alt {-d:4.1f} m  chem {self.chem:6.2f}"
         if self.wind is not None:
-            sp, fr = wind_speed_from_deg(self.wind)
+            sp, fr = wind_speed_from_deg(np.asarray(self.wind, dtype=float))
             s += f"  wind est {sp:4.1f} m/s from {fr:3.0f} deg"
         return s
 

@@ -229,10 +229,11 @@ class FlightController(MissionExecution):
             return True, "offboard"
         if mode == Mode.TAKEOFF:
             return self.takeoff()
-        if mode == Mode.LAND:
-            return self.land() if self.armed else (self._set_mode(Mode.LAND) or (True, "land"))
-        if mode == Mode.RTL:
-            return self.rtl() if self.armed else (self._set_mode(Mode.RTL) or (True, "rtl"))
+        if mode in (Mode.LAND, Mode.RTL):
+            if self.armed:
+                return self.land() if mode == Mode.LAND else self.rtl()
+            self._set_mode(mode)
+            return True, "land" if mode == Mode.LAND else "rtl"
         if mode == Mode.MISSION:
             if not self.armed:
                 self._set_mode(Mode.MISSION)
