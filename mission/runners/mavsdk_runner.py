@@ -32,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+
 from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
 from mission.runners.live_wind import ESTIMATOR_MESSAGES, EstimatedLiveWind, NoLiveWind, WindCovWind
@@ -120,13 +122,30 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
                                seed=cfg.seed)  # fmt: skip
             loop.result.strategy = cfg.strategy
             await _ensure_datalink_failsafe(v, loop.say)
-            res = await loop.run()
+            lags: list[float] = []
+            probe = asyncio.create_task(_loop_lag(lags))
+            try:
+                res = await loop.run()
+            finally:
+                probe.cancel()
+            if lags:
+                res.loop_lag_max_ms = round(max(lags), 1)
+                res.loop_lag_p99_ms = round(float(np.percentile(lags, 99)), 1)
             res.estimator.update({f"link_{k}": n for k, n in v.counters.items()})
     finally:
         if estimated is not None:
             estimated.stop()
     res.wall_s = round(time.monotonic() - wall0, 2)
     return res
+
+
+async def _loop_lag(lags: list[float], period_s: float = 0.02) -> None:
+    """How late the event loop wakes from ``period_s`` sleeps (ms), appended to ``lags`` (bounded)."""
+    while True:
+        t0 = time.monotonic()
+        await asyncio.sleep(period_s)
+        if len(lags) < 200_000:
+            lags.append(max(0.0, (time.monotonic() - t0 - period_s) * 1e3))
 
 
 def _lazy_sink(box: dict[str, Any]) -> Callable[[str, dict[str, Any], float], None]:
