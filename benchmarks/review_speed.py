@@ -18,6 +18,8 @@ every copy: reading speed only), and a ULog re-written by pyulog with the hover 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import subprocess
 import sys
 import time
@@ -53,7 +55,12 @@ def timed(fn: Callable[[], Any]) -> tuple[Any, float, float]:
 
 
 def peer_read(path: Path, kind: str) -> int:
-    """Read every message with the reference library: the peer of the review's reader."""
+    """Read every message with the reference library: the peer of the review's reader (its prints muted)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        return _peer_read(path, kind)
+
+
+def _peer_read(path: Path, kind: str) -> int:
     if kind == "ulog":
         u = ULog(str(path))
         return sum(len(d.data["timestamp"]) for d in u.data_list)

@@ -169,7 +169,8 @@ def read_dataflash(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: f
     fd = FlightData(path=path, kind="dataflash", size_bytes=path.stat().st_size)
     fd.counts.update(T.counts())
     if T.printed:
-        fd.warnings.append("pymavlink: " + "; ".join(dict.fromkeys(T.printed)))
+        more = f" (and {len(T.printed) - 3} more such lines)" if len(T.printed) > 3 else ""
+        fd.warnings.append("pymavlink: " + "; ".join(T.printed[:3]) + more)
     mav_type = _identity(fd, T)
     _imu_attitude(fd, T)
     _navigation(fd, T)

@@ -30,6 +30,7 @@ from pymavlink import mavutil
 
 from review.flight import MAX_BOOT_TIME_S
 from review.tlog_scan import RecordScanner, frame_header
+from wire import px4_modes
 
 #: Message type -> the fields kept (in this order, after the time).
 FIELDS: dict[str, tuple[str, ...]] = {
@@ -63,7 +64,7 @@ OTHER_COMPONENT_TYPES = frozenset({"WIND_COV", "STATUSTEXT"})
 #: MAVLink severities -> Rerun text levels.
 SEVERITY_LEVEL = {0: "CRITICAL", 1: "CRITICAL", 2: "CRITICAL", 3: "ERROR", 4: "WARN", 5: "INFO", 6: "INFO", 7: "DEBUG"}
 ARMED_FLAG = 128  # MAV_MODE_FLAG_SAFETY_ARMED
-NO_AUTOPILOT, GCS_TYPE = 8, 6  # MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS
+NO_AUTOPILOT, GCS_TYPE, PX4_AUTOPILOT = 8, 6, 12  # MAV_AUTOPILOT_INVALID, MAV_TYPE_GCS, MAV_AUTOPILOT_PX4
 
 
 @dataclass
@@ -95,7 +96,8 @@ def _msg_time(msg: Any, mtype: str, t_last: float) -> tuple[float, bool | None]:
 
 
 class _Heartbeats:
-    """Arming and mode changes of the autopilot's HEARTBEATs (mode names by pymavlink)."""
+    """Arming and mode changes of the autopilot's HEARTBEATs (PX4 mode names by ``wire.px4_modes``,
+    as PX4 and QGroundControl spell them; other autopilots' by pymavlink)."""
 
     def __init__(self, col: Collected) -> None:
         self.col = col
@@ -113,7 +115,8 @@ class _Heartbeats:
             self.last_armed = armed
         key = (int(m.base_mode) & ~ARMED_FLAG, int(m.custom_mode))
         if key != self.last_key:
-            mode = mavutil.mode_string_v10(m)
+            px4 = m.autopilot == PX4_AUTOPILOT and m.base_mode & px4_modes.CUSTOM_MODE_ENABLED
+            mode = px4_modes.name(int(m.custom_mode)) if px4 else mavutil.mode_string_v10(m)
             if self.last_key is None or mode != self._last_mode:
                 self.col.texts.append((t, f"mode {mode}", "INFO"))
             self._last_mode = mode

@@ -76,7 +76,8 @@ def _identity(fd: FlightData, ulog: ULog, data: dict[str, ut.Topic]) -> None:
 
 def _file_notes(fd: FlightData, ulog: ULog, printed: list[str]) -> None:
     if ulog.file_corruption or printed:
-        what = "; ".join(dict.fromkeys(printed)) or "file corruption"
+        lines = list(dict.fromkeys(printed))
+        what = "; ".join(lines[:3]) + (f" (and {len(lines) - 3} more)" if len(lines) > 3 else "") or "file corruption"
         fd.warnings.append(f"pyulog: {what}: data after the damage may be missing")
     if ulog.dropouts:
         fd.notes.append(f"{len(ulog.dropouts)} logger dropout(s), {sum(d.duration for d in ulog.dropouts)} ms in all")

@@ -5,7 +5,8 @@ Topics (first instance of each; PX4 names and units, already SI and NED/FRD):
     sensor_combined         accelerometer_m_s2[3] (specific force, FRD), gyro_rad[3]; the sample
                             time is timestamp + accelerometer_timestamp_relative   -> imu
     vehicle_attitude        q[4] = [w, x, y, z], body FRD -> NED                   -> attitude
-    vehicle_local_position  x, y, z, vx, vy, vz (NED), *_valid flags   -> position, velocity
+    vehicle_local_position  x, y, z, vx, vy, vz (NED), *_valid flags   -> position (where z is valid:
+                            the height check needs it), velocity (where v_xy is valid)
     sensor_gps / vehicle_gps_position  vel_n_m_s, vel_e_m_s, vel_d_m_s -> velocity (fallback)
     esc_status              esc[i].esc_rpm, esc_count                  -> rotor speeds
     actuator_outputs        output[0..3] (PWM us, or 0..1)   -> rotor commands without ESC data
@@ -74,10 +75,11 @@ def local_position_topic(fd: FlightData, d: Topic) -> None:
     t = t_of(d)
     p = cols(d, ["x", "y", "z"])
     if p is not None:
-        ok = np.asarray(d.get("xy_valid", np.ones(len(t))), dtype=bool)
-        if not ok.all():
-            fd.notes.append(f"{int((~ok).sum())} of {len(t)} vehicle_local_position sample(s) without a valid "
-                            "horizontal position (xy_valid = 0): no trajectory there")  # fmt: skip
+        ok = np.asarray(d.get("z_valid", np.ones(len(t))), dtype=bool)
+        xy = np.asarray(d.get("xy_valid", np.ones(len(t))), dtype=bool)
+        if not xy[ok].all():
+            fd.notes.append(f"{int((~xy[ok]).sum())} of {int(ok.sum())} vehicle_local_position sample(s) without a "
+                            "valid horizontal position (xy_valid = 0): drawn as logged (dead reckoning)")  # fmt: skip
         if ok.any():
             fd.position = Series.of(t[ok], p[ok], "position")
             fd.sources["position"] = "vehicle_local_position"

@@ -28,7 +28,6 @@ from recording.read import RrdLog
 from review.convert import ReviewResult, review
 from review.detect import detect_format
 from review.summary import format_summary
-from review.vehicle_info import sw_version
 from windseek.cli import main as cli_main
 
 _CANDIDATES = [Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "logs", Path("/work/shared/data/logs")]
@@ -63,7 +62,7 @@ def test_never_armed_bench_log_is_not_airborne(reviews: dict[str, ReviewResult])
     assert s["duration_s"] > 60.0 and s["autopilot"] == "PX4 (fd483321)"
     paths = RrdLog(r.out).temporal_entity_paths()
     assert "rotors/1" in paths and not any(p.startswith(("wind/", "extra/")) for p in paths), paths
-    assert any("xy_valid = 0" in n for n in s["notes"])  # a bench: no horizontal fix, so no trajectory
+    assert any("xy_valid = 0" in n for n in s["notes"])  # a bench: no horizontal fix
     assert "wind figure: none (not airborne" in format_summary(s)
 
 
@@ -193,10 +192,3 @@ def test_content_detection_both_ways(tmp_path: Path) -> None:
     res = review(tmp_path / "as-ulog.ulg", tmp_path / "a.rrd")
     assert res.summary["kind"] == "tlog" and res.summary["sources"]["imu"] == "RAW_IMU"
     assert any("read as a tlog by its content" in n for n in res.summary["notes"])
-
-
-def test_firmware_versions_decode_as_px4_and_qgc_show_them() -> None:
-    assert sw_version(17170432) == "v1.6.0 (dev)"
-    assert sw_version(0x010E03FF) == "v1.14.3"
-    assert sw_version(0x010F00C0) == "v1.15.0 (rc)"
-    assert sw_version(0x04050080) == "v4.5.0 (beta)"
