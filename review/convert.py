@@ -13,6 +13,8 @@ no recording, and the reason in ``summary["error"]``.
 
 from __future__ import annotations
 
+import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,6 +81,15 @@ def _unusable(fd: FlightData, out: Path) -> ReviewResult:
     return ReviewResult(fd, None, out, [], s)
 
 
+def _check_writable(out: Path) -> None:
+    """Fail before the work, not after it, when the recording cannot be written there. A folder
+    without any write bit counts as read-only even for root (a shared data folder, for one)."""
+    parent = next((p for p in (out.parent, *out.parent.parents) if p.exists()), Path("."))
+    no_bits = not parent.stat().st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH)
+    if out.is_dir() or no_bits or not os.access(parent, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        raise PermissionError(f"{out}: cannot write the recording there (give another place with -o)")
+
+
 def review(
     path: Path | str,
     out: Path | str | None = None,
@@ -109,6 +120,7 @@ def review(
     """
     path = Path(path)
     out = path.with_suffix(".rrd") if out is None else Path(out)
+    _check_writable(out)
     progress = progress or NoProgress()
     params = load_vehicle(vehicle)
     fd = read_flight(path, motor_order, params.rotor_speed_max_rad_s, progress)

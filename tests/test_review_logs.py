@@ -192,3 +192,17 @@ def test_content_detection_both_ways(tmp_path: Path) -> None:
     res = review(tmp_path / "as-ulog.ulg", tmp_path / "a.rrd")
     assert res.summary["kind"] == "tlog" and res.summary["sources"]["imu"] == "RAW_IMU"
     assert any("read as a tlog by its content" in n for n in res.summary["notes"])
+
+
+def test_read_only_folder_is_refused_before_the_work(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """The default output is next to the log: a read-only folder (like shared/data/logs) is refused up front."""
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    shutil.copyfile(_log("ardupilot-dataflash-excerpt.BIN"), ro / "x.BIN")
+    ro.chmod(0o555)
+    try:
+        assert cli_main(["review", str(ro / "x.BIN")]) == 2
+        assert "cannot write the recording there" in capsys.readouterr().err
+        assert sorted(p.name for p in ro.iterdir()) == ["x.BIN"]
+    finally:
+        ro.chmod(0o755)
