@@ -129,7 +129,8 @@ def format_summary(s: dict[str, Any]) -> str:
     lines += [f"imu: {n}" for n in s["imu"]]
     if s.get("imu_decimated"):
         lines.append(f"imu: decimated from {s['imu_rate_hz']:g} Hz to {s['imu_rate_used_hz']:g} Hz (block means) "
-                     "for the estimator, to bound its time on a long log (--imu-rate 0: every sample)")  # fmt: skip
+                     "for the estimator, to bound its time on a long log; the vertical figure shifts most "
+                     "(--imu-rate full: every sample)")  # fmt: skip
     if s.get("model"):
         lines.append(s["model"])
     if s["wind_figure"]:

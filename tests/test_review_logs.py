@@ -206,3 +206,13 @@ def test_read_only_folder_is_refused_before_the_work(tmp_path: Path, capsys: pyt
         assert sorted(p.name for p in ro.iterdir()) == ["x.BIN"]
     finally:
         ro.chmod(0o755)
+
+
+def test_decimated_imu_is_said_and_keeps_the_horizontal_figure(reviews: dict[str, ReviewResult],
+                                                                tmp_path: Path) -> None:  # fmt: skip
+    full = reviews["px4-sitl-quad-hover.ulg"].summary
+    s = review(_log("px4-sitl-quad-hover.ulg"), tmp_path / "d.rrd", imu_rate_hz=100.0).summary
+    assert not full["imu_decimated"] and s["imu_decimated"] and s["imu_rate_used_hz"] == 100.0
+    assert 0.35 * full["imu_steps"] < s["imu_steps"] < 0.45 * full["imu_steps"]
+    assert np.allclose(s["wind_mean_ned_ms"][:2], full["wind_mean_ned_ms"][:2], atol=0.1)
+    assert "decimated from 250" in format_summary(s)
