@@ -45,13 +45,14 @@ def _dtype(fmt: Any) -> tuple[np.dtype, list[float | None]] | None:
 class DataFlashTables:
     """Typed access to the messages of a DataFlash ``.bin``: ``tables.get("IMU")`` -> {column: array}.
 
-    ``printed`` holds what pymavlink printed while indexing (it prints its warnings to stdout).
+    ``printed`` holds what pymavlink printed while indexing (its warnings about bad bytes and formats,
+    on stdout and stderr).
     """
 
     def __init__(self, path: Path) -> None:
         out = io.StringIO()
         try:
-            with contextlib.redirect_stdout(out):
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
                 self.reader = DFReader_binary(str(path), zero_time_base=False)
         except Exception as e:  # pymavlink raises plain exceptions on a damaged index
             raise ValueError(f"{path}: not a readable DataFlash log ({e})") from e

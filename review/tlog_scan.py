@@ -87,8 +87,9 @@ class RecordScanner:
                 yield t_us * 1e-6, buf[i + 8 : i + 8 + ln]
                 i += 8 + ln
             self.position = base + i
-            if i < len(buf):
+            if i < len(buf):  # a record cut off before its frame header
                 self.skipped += len(buf) - i
+                self.truncated = True
 
 
 @dataclass

@@ -43,14 +43,51 @@ LOG_LEVELS = {"EMERGENCY": "CRITICAL", "ALERT": "CRITICAL", "CRITICAL": "CRITICA
               "WARNING": "WARN", "NOTICE": "INFO", "INFO": "INFO", "DEBUG": "DEBUG"}  # fmt: skip
 
 
+class ParserStuckError(RuntimeError):
+    """pyulog kept reading without getting through the file (not one of the errors pyulog catches)."""
+
+
+class BoundedFile:
+    """The log file for pyulog, with a bound on its read calls.
+
+    pyulog steps back over a message it finds corrupt (``seek(-2 - msg_size, 1)``, to advance by one
+    byte); when that message's payload was cut by the end of the file the seek goes back further than
+    the reads went forward, and pyulog loops forever (seen on a truncated, damaged ULog). A legitimate
+    parse makes at most two reads per 3-byte message header plus two per byte skipped while
+    resynchronizing, so ``8 * size + 100_000`` read calls is a bound that no readable file reaches.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._f = path.open("rb")
+        self._left = 8 * path.stat().st_size + 100_000
+
+    def read(self, n: int = -1) -> bytes:
+        self._left -= 1
+        if self._left < 0:
+            raise ParserStuckError("pyulog did not get through the file (a damaged or truncated log)")
+        return self._f.read(n)
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        return self._f.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+    def close(self) -> None:
+        self._f.close()
+
+
 def open_ulog(path: Path) -> tuple[ULog, list[str]]:
     """pyulog's ULog of the review's topics, and what pyulog printed (its corruption warnings)."""
     out = io.StringIO()
+    f = BoundedFile(path)
     try:
-        with contextlib.redirect_stdout(out):
-            ulog = ULog(str(path), TOPICS)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            ulog = ULog(f, TOPICS)  # type: ignore[arg-type]  # pyulog takes any binary file object
     except Exception as e:  # pyulog raises plain exceptions on a bad header
         raise ValueError(f"{path}: not a readable ULog ({e})") from e
+    finally:
+        f.close()
     return ulog, [line.strip() for line in out.getvalue().splitlines() if line.strip()]
 
 

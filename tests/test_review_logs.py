@@ -216,3 +216,27 @@ def test_decimated_imu_is_said_and_keeps_the_horizontal_figure(reviews: dict[str
     assert 0.35 * full["imu_steps"] < s["imu_steps"] < 0.45 * full["imu_steps"]
     assert np.allclose(s["wind_mean_ned_ms"][:2], full["wind_mean_ned_ms"][:2], atol=0.1)
     assert "decimated from 250" in format_summary(s)
+
+
+def test_damaged_logs_are_counted_never_fatal(tmp_path: Path) -> None:
+    """300 random bytes changed in each log (seeded): the tlog is still reviewed with the damage counted;
+    the .bin and .ulg give a usable=False result or one clear ValueError, never a crash or a hang."""
+    import random
+
+    rng = random.Random(7)
+    for name in ("ardupilot-quadplane-sitl.tlog", "ardupilot-dataflash-excerpt.BIN", "px4-vtol-short-hop.ulg"):
+        b = bytearray(_log(name).read_bytes()[:200_000])
+        for _ in range(300):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        p = tmp_path / f"damaged-{name}"
+        p.write_bytes(bytes(b))
+        try:
+            r = review(p, tmp_path / f"{name}.rrd")
+        except ValueError as e:
+            assert str(p) in str(e)
+            continue
+        if name.endswith(".tlog"):
+            assert r.usable and r.summary["sources"]["imu"] == "RAW_IMU"
+            assert any("bad CRC" in n or "skipped" in n for n in r.summary["notes"]), r.summary["notes"]
+        else:
+            assert r.usable or "nothing usable" in r.summary["error"]
