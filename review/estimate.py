@@ -36,6 +36,8 @@ from vehicle.params import VehicleParams
 MAX_IMU_SAMPLES = 200_000
 #: The automatic decimation goes no lower than this [Hz] (the filter's behaviour drifts below it).
 MIN_AUTO_IMU_RATE_HZ = 100.0
+#: A longer pause of the IMU [s] ends the filter's span; a fresh filter starts after it.
+MAX_IMU_GAP_S = 5.0
 #: Input kinds, in the tie-break order at equal time stamps (held inputs before the IMU sample).
 K_ATT, K_ROT, K_CMD, K_IMU, K_VEL = 0, 1, 2, 3, 4
 TICK_EVENTS = 4096
@@ -56,6 +58,7 @@ class EstimatorTrack:
     imu_steps: int = 0
     imu_rate_in_hz: float = 0.0  # the log's IMU rate in the air
     imu_rate_used_hz: float = 0.0  # the rate the filter ran at (lower when decimated)
+    gap_cuts: int = 0  # airborne segments cut at IMU gaps longer than MAX_IMU_GAP_S
     rejected: Counter[str] = field(default_factory=Counter)
 
     @property
@@ -73,6 +76,24 @@ def decimate_imu(imu: Series, rate_hz: float) -> Series:
     n = np.diff(np.append(starts, len(b)))
     mean = np.add.reduceat(imu.v, starts, axis=0) / n[:, None]
     return Series(imu.t[starts + n - 1], mean, imu.name)
+
+
+def filter_spans(fd: FlightData, imu: Series) -> tuple[list[tuple[float, float]], int]:
+    """The spans a fresh filter runs over: the airborne segments, cut where the IMU stops for more than
+    :data:`MAX_IMU_GAP_S` (a logging gap, or a damaged time stamp far ahead: the filter would bridge it
+    in 20 ms prediction steps, millions of them). Returns the spans and how many cuts were made."""
+    spans: list[tuple[float, float]] = []
+    cuts = 0
+    for a, b in fd.airborne_segments():
+        t = imu.between(a, b).t
+        if not len(t):
+            continue
+        gaps = np.nonzero(np.diff(t) > MAX_IMU_GAP_S)[0]
+        cuts += len(gaps)
+        starts = np.concatenate(([a], t[gaps + 1]))
+        ends = np.concatenate((t[gaps], [b]))
+        spans += [(float(s), float(e)) for s, e in zip(starts, ends, strict=True)]
+    return spans, cuts
 
 
 def airborne_imu(fd: FlightData) -> tuple[int, float]:
@@ -157,7 +178,7 @@ def run_estimator(
     rows: list[np.ndarray] = []
     rejected: Counter[str] = Counter()
     steps = 0
-    segs = fd.airborne_segments()
+    segs, cuts = filter_spans(fd, imu)
     events = [_events(fd, imu, a, b, use_cmd) for a, b in segs]
     total = max(sum(len(ev) for _, ev in events), 1)
     done = [0]
@@ -176,7 +197,7 @@ def run_estimator(
     return EstimatorTrack(
         t=a[:, 0], segment_start=a[:, 1], wind=a[:, 2:5], sigma=a[:, 5:8], speed=a[:, 8],
         direction_deg=a[:, 9], direction_filtered_deg=a[:, 10], imu_steps=steps, imu_rate_in_hz=rate_in,
-        imu_rate_used_hz=rate_used, rejected=rejected,
+        imu_rate_used_hz=rate_used, gap_cuts=cuts, rejected=rejected,
     )  # fmt: skip
 
 

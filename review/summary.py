@@ -76,7 +76,7 @@ def summarize(fd: FlightData, track: EstimatorTrack | None, trust: Trust | None,
     s.update(settle_s=settle_s, min_height_m=min_height_m if len(fd.position) else None, imu_steps=track.imu_steps,
              samples_total=len(track.t), samples_settling=trust.settling, samples_near_ground=trust.near_ground,
              imu_rate_hz=round(track.imu_rate_in_hz, 1), imu_rate_used_hz=round(track.imu_rate_used_hz, 1),
-             imu_decimated=track.decimated, rejected=dict(track.rejected))  # fmt: skip
+             imu_decimated=track.decimated, imu_gap_cuts=track.gap_cuts, rejected=dict(track.rejected))  # fmt: skip
     if not trust.ok.any():
         s["wind_figure_reason"] = no_figure_reason(fd, track, trust, settle_s, min_height_m)
         return s
@@ -131,6 +131,9 @@ def format_summary(s: dict[str, Any]) -> str:
         lines.append(f"imu: decimated from {s['imu_rate_hz']:g} Hz to {s['imu_rate_used_hz']:g} Hz (block means) "
                      "for the estimator, to bound its time on a long log; the vertical figure shifts most "
                      "(--imu-rate full: every sample)")  # fmt: skip
+    if s.get("imu_gap_cuts"):
+        lines.append(f"imu: {s['imu_gap_cuts']} gap(s) of more than 5 s in the IMU while airborne: a fresh filter "
+                     "(and its settling time) after each")  # fmt: skip
     if s.get("model"):
         lines.append(s["model"])
     if s["wind_figure"]:

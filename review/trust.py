@@ -45,10 +45,12 @@ def trust_mask(fd: FlightData, track: EstimatorTrack, settle_s: float, min_heigh
         pt, pz = fd.position.t, fd.position.v[:, 2]
         z = np.interp(track.t, pt, pz)
         ground: dict[float, float] = {}
-        for a, b in fd.airborne_segments():
+        segs = fd.airborne_segments()
+        for s0 in np.unique(track.segment_start):  # a filter span's start: in one airborne segment
+            a, b = next(((a, b) for a, b in segs if a <= s0 <= b), (s0, s0))
             i, j = np.searchsorted(pt, a - GROUND_LOOKBACK_S), np.searchsorted(pt, b, side="right")
-            ground[a] = float(np.nanmax(pz[i:j])) if j > i else math.nan
-        z_ground = np.array([ground.get(float(a), math.nan) for a in track.segment_start])
+            ground[float(s0)] = float(np.nanmax(pz[i:j])) if j > i else math.nan
+        z_ground = np.array([ground[float(a)] for a in track.segment_start])
         low = (z_ground - z) < min_height_m  # NaN (no position there): kept
     return Trust(ok=settled & ~low, settling=int((~settled).sum()), near_ground=int((settled & low).sum()))
 

@@ -55,3 +55,19 @@ def test_review_does_not_import_the_simulator() -> None:
             "print(bad); sys.exit(1 if bad else 0)")  # fmt: skip
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_filter_spans_cut_at_imu_gaps() -> None:
+    """A damaged time stamp far ahead must not make the filter bridge it in 20 ms steps: the span ends."""
+    from pathlib import Path
+
+    from review.estimate import MAX_IMU_GAP_S, filter_spans
+
+    fd = FlightData(path=Path("x"), kind="tlog")
+    t = np.concatenate([np.arange(0.0, 10.0, 0.01), np.arange(20.0, 30.0, 0.01), [5.0e6]])
+    fd.imu = Series(t, np.zeros((len(t), 6)))
+    fd.in_air = [(0.0, True)]
+    spans, cuts = filter_spans(fd, fd.imu)
+    assert cuts == 2 and len(spans) == 3 and MAX_IMU_GAP_S < 10.0
+    assert spans[0][0] == 0.0 and spans[0][1] == pytest.approx(9.99) and spans[1][0] == pytest.approx(20.0)
+    assert spans[2] == (5.0e6, 5.0e6)
