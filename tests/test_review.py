@@ -549,7 +549,9 @@ def test_demo_style_sitl_tlog(tmp_path: Path) -> None:
     assert s["sources"]["in_air"] == "EXTENDED_SYS_STATE"
     # time: one take-off and one landing, on the boot clock, within the log
     assert s["airborne_segments"] == 1
-    assert 10.0 < s["airborne_s"] <= s["duration_s"] < 60.0, s
+    # within the log (the PING clock once made it 4149.7 s in 114 s); the log's length itself depends on how
+    # long the loaded machine took to start the SITL (its clock runs from boot at speed 4), so only a loose cap
+    assert 10.0 < s["airborne_s"] <= s["duration_s"] < 600.0, s
     (a, b), = fd.airborne_segments()
     assert b < fd.time_range[1] - 0.1  # the landing was seen before the log ended
     assert [x for _, x, _ in fd.texts if x in ("armed", "disarmed")] == ["disarmed", "armed", "disarmed"]
