@@ -40,6 +40,15 @@ def canyon() -> UrbanWindField:
     return solve_urban_wind(street_canyon_scene(height_m=H, spacing_m=1.0))
 
 
+@njit(cache=True)
+def _sample_all(points, *args):  # type: ignore[no-untyped-def]
+    """The simulator's way: one point at a time from compiled code."""
+    out = np.empty_like(points)
+    for k in range(points.shape[0]):
+        out[k] = urban_wind_mean(points[k], *args)
+    return out
+
+
 def _line(x0: float, x1: float, y: float, h: float, step: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     xs = np.arange(x0, x1, -step)
     return xs, np.column_stack([xs, np.full_like(xs, y), np.full_like(xs, -h)])
@@ -145,21 +154,23 @@ def test_sampling_many_single_and_njit_agree(cube: UrbanWindField) -> None:
     many = cube.mean(pts)
     single = np.array([cube.mean(p) for p in pts])
     assert np.array_equal(many, single)
+    assert np.array_equal(_sample_all(pts, *cube.kernel_args()), many)
 
-    @njit
-    def sample_all(points, *args):  # type: ignore[no-untyped-def]
-        out = np.empty_like(points)
-        for k in range(points.shape[0]):
-            out[k] = urban_wind_mean(points[k], *args)
-        return out
 
-    assert np.array_equal(sample_all(pts, *cube.kernel_args()), many)
+def test_non_finite_positions_give_nan(cube: UrbanWindField) -> None:
+    bad = np.array([[np.nan, 10.0, -2.0], [10.0, np.inf, -2.0], [10.0, 10.0, -np.inf]])
+    assert np.isnan(cube.mean(bad)).all()
+    assert np.isnan(cube.turbulence_multiplier_at(bad)).all()
+    assert not cube.inside(bad).any()
+    with pytest.raises(ValueError, match=r"shape \(3,\) or \(N, 3\)"):
+        cube.mean(np.zeros((2, 2)))
 
 
 def test_turbulence_multiplier(cube: UrbanWindField) -> None:
     w = cube.scene.wind
-    free = cube.turbulence_multiplier_at(np.array([[10.5 * H, 0.5 * H, -3.0]]))[0]
-    assert free == pytest.approx(float(w.speed_at(3.0)) / w.speed_m_s, rel=0.05)
+    free = cube.turbulence_multiplier_at(np.array([[10.5 * H, 0.5 * H, -h] for h in (1.0, 3.0, 12.0)]))
+    assert free == pytest.approx(1.0, rel=0.03)  # undisturbed flow: today's turbulence
+    assert cube.turbulence_multiplier_at(np.array([[-10.0, 0.0, -3.0]]))[0] == 1.0  # outside the grid
     cavity = cube.turbulence_multiplier_at(np.array([[6.7 * H, 3.5 * H, -0.3 * H]]))[0]
     u_h = float(w.speed_at(H))
     assert cavity >= 0.99 * cube.scene.options.wake_turbulence_enhancement * u_h / w.speed_m_s

@@ -296,8 +296,8 @@ class UrbanOptions:
             about 1e-8 U_ref / dx).
         amg: multigrid preconditioner, ``"classical"`` (Ruge-Stueben, faster here) or
             ``"smoothed_aggregation"``.
-        wake_turbulence_enhancement: turbulence floor in cavities, canyons and rooftop vortices
-            as a multiple of the building-height wind (see :mod:`.field`).
+        wake_turbulence_enhancement: turbulence floor in cavities, canyons and rooftop vortices:
+            the multiplier is at least this times U_H / U_ref there (see :mod:`.field`).
     """
 
     upwind: bool = True

@@ -17,22 +17,26 @@ interpolated as a ratio to the upstream log law (so the upstream profile is repr
 between levels and continues as a log law below the first cell centre), w linearly. Zero inside
 a building (exact prism geometry); the upstream log profile outside the grid (sides, top).
 
-Turbulence hook. The project's Kaimal field has a single sigma_u set for the reference-height
-wind U_ref. In the city it should follow the local mean wind and be stronger in separated flow,
-so the multiplier per cell is::
+Turbulence hook. The project's Kaimal field has one sigma_u at all heights (right for a neutral
+surface layer, where sigma_u ~ 2.4 u* does not change with height). Among buildings it should
+follow the local mean wind and be stronger in separated flow, so the multiplier per cell is::
 
-    m = max(|V_mean|, enhancement * U_zone) / U_ref      (0 inside buildings)
+    m = max(|V_mean| / U_up(h), enhancement * U_zone / U_ref)      (0 inside buildings)
 
-with U_zone the roof-height speed U_H of the building whose cavity, street canyon or rooftop
-vortex holds the cell (tapered linearly to 0 across its far wake), ``enhancement`` =
+with U_up(h) the upstream log-law speed at the cell's height (floored at 0.05 U_ref), U_zone
+the roof-height speed U_H of the building whose cavity, street canyon or rooftop vortex holds
+the cell (tapered linearly to 0 across its far wake) and ``enhancement`` =
 ``UrbanOptions.wake_turbulence_enhancement`` (1.5: wind-tunnel cube wakes show sigma_u / U_H of
-0.2-0.3, about 1.5 x an upstream intensity of 0.15-0.2 at roof height). The lead scales the
-Kaimal perturbation sampled at a point by ``m`` there (:func:`urban_turbulence_multiplier_at`);
-in the free stream this is the usual constant-intensity assumption sigma ~ U(h).
+0.2-0.3, about 1.5 x an upstream intensity of 0.15-0.2). m = 1 in the undisturbed flow, so far
+from buildings the turbulence is exactly today's; it drops in sheltered, slow air, rises where
+streets and roofs speed the wind up, and is at least 1.5 U_H / U_ref in recirculation. The lead
+scales the Kaimal perturbation sampled at a point by ``m`` there
+(:func:`urban_turbulence_multiplier_at`; 1 outside the grid).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,7 +49,7 @@ from .parameterizations import log_speed
 from .solver import SolveStats, divergence
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _level(fk: float, nk: int) -> tuple[int, int, float]:
     """(k0, k1, weight of k1) for a fractional index clamped to [0, nk - 1]."""
     fk = min(max(fk, 0.0), nk - 1.0)
@@ -54,11 +58,9 @@ def _level(fk: float, nk: int) -> tuple[int, int, float]:
     return k0, k1, fk - k0
 
 
-@njit(cache=True)
-def _bilinear(a: np.ndarray, fi: float, fj: float, k: int) -> float:
-    """Bilinear value of ``a[:, :, k]`` at fractional indices, clamped to the array's extent."""
-    i0, i1, ti = _level(fi, a.shape[0])
-    j0, j1, tj = _level(fj, a.shape[1])
+@njit(cache=True, inline="always")
+def _bilinear(a: np.ndarray, i0: int, i1: int, ti: float, j0: int, j1: int, tj: float, k: int) -> float:
+    """Bilinear value of ``a[:, :, k]`` between columns i0, i1 (weight ti) and j0, j1 (tj)."""
     c0 = a[i0, j0, k] * (1.0 - ti) + a[i1, j0, k] * ti
     c1 = a[i0, j1, k] * (1.0 - ti) + a[i1, j1, k] * ti
     return c0 * (1.0 - tj) + c1 * tj
@@ -67,11 +69,13 @@ def _bilinear(a: np.ndarray, fi: float, fj: float, k: int) -> float:
 @njit(cache=True)
 def _trilinear(a: np.ndarray, fi: float, fj: float, fk: float) -> float:
     """Trilinear value of ``a`` at fractional indices, each clamped to the array's extent."""
+    i0, i1, ti = _level(fi, a.shape[0])
+    j0, j1, tj = _level(fj, a.shape[1])
     k0, k1, tk = _level(fk, a.shape[2])
-    return (1.0 - tk) * _bilinear(a, fi, fj, k0) + tk * _bilinear(a, fi, fj, k1)
+    return (1.0 - tk) * _bilinear(a, i0, i1, ti, j0, j1, tj, k0) + tk * _bilinear(a, i0, i1, ti, j0, j1, tj, k1)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _log_weights(h: float, fk: float, nk: int, dz: float, wp: np.ndarray) -> tuple[int, int, float, float]:
     """(k0, k1, w0, w1): vertical weights for the horizontal components between cell-centre
     levels, interpolating u / U_log(h) linearly and multiplying by U_log(h). The upstream profile
@@ -94,8 +98,11 @@ def urban_wind_at(
     """Mean air-mass velocity (north, east, down) m/s at NED point (x, y, z) m.
 
     ``gp`` = (x0, y0, dx, dy, dz), ``wp`` = (U_ref, z0, d, 1/ln((z_ref-d)/z0), e_n, e_e).
+    A non-finite position gives NaN (and never an out-of-range read).
     """
     h = -z
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return math.nan, math.nan, math.nan
     if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
         return 0.0, 0.0, 0.0
     nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
@@ -103,10 +110,22 @@ def urban_wind_at(
     if fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0:
         sp = log_speed(h, wp[0], wp[1], wp[2], wp[3])
         return sp * wp[4], sp * wp[5], 0.0
+    # Column indices shared by the three staggered grids: faces (fx, fy), centres (fx/fy - 0.5).
+    if_0, if_1, tif = _level(fx, nx + 1)
+    ic_0, ic_1, tic = _level(fx - 0.5, nx)
+    jf_0, jf_1, tjf = _level(fy, ny + 1)
+    jc_0, jc_1, tjc = _level(fy - 0.5, ny)
     k0, k1, w0, w1 = _log_weights(h, fh - 0.5, nz, gp[4], wp)
-    un = w0 * _bilinear(u_n, fx, fy - 0.5, k0) + w1 * _bilinear(u_n, fx, fy - 0.5, k1)
-    ve = w0 * _bilinear(v_e, fx - 0.5, fy, k0) + w1 * _bilinear(v_e, fx - 0.5, fy, k1)
-    wd = _trilinear(w_d, fx - 0.5, fy - 0.5, fh)
+    un = w0 * _bilinear(u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k0) + w1 * _bilinear(
+        u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k1
+    )
+    ve = w0 * _bilinear(v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k0) + w1 * _bilinear(
+        v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k1
+    )
+    kw0, kw1, tkw = _level(fh, nz + 1)
+    wd = (1.0 - tkw) * _bilinear(w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw0) + tkw * _bilinear(
+        w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw1
+    )
     return un, ve, wd
 
 
@@ -142,17 +161,19 @@ def urban_turbulence_multiplier_at(
     verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray,
 ) -> np.ndarray:
     """Turbulence multiplier (N,) at NED points (N, 3): trilinear between cell centres, 0 inside
-    buildings, U(h) / U_ref of the upstream profile outside the grid."""
+    buildings, 1 outside the grid (the undisturbed flow)."""
     n = points.shape[0]
     out = np.empty(n)
     nx, ny, nz = tm.shape
     for k in range(n):
         x, y, h = points[k, 0], points[k, 1], -points[k, 2]
         fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
-        if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
+            out[k] = math.nan
+        elif building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
             out[k] = 0.0
-        elif fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0 or wp[0] <= 0.0:
-            out[k] = log_speed(h, wp[0], wp[1], wp[2], wp[3]) / wp[0] if wp[0] > 0.0 else 1.0
+        elif fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0:
+            out[k] = 1.0
         else:
             out[k] = _trilinear(tm, fx - 0.5, fy - 0.5, fh - 0.5)
     return out
@@ -160,16 +181,19 @@ def urban_turbulence_multiplier_at(
 
 def turbulence_multiplier(
     u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray, solid: np.ndarray, u_zone: np.ndarray,
-    u_ref: float, enhancement: float,
+    scene: UrbanScene,
 ) -> np.ndarray:
-    """Per-cell multiplier ``max(|V|, enhancement U_zone) / U_ref`` (module docstring), 0 in buildings."""
-    if u_ref <= 0.0:
+    """Per-cell ``max(|V| / U_up(h), enhancement U_zone / U_ref)`` (module docstring), 0 in buildings."""
+    wind = scene.wind
+    if wind.speed_m_s <= 0.0:
         return np.where(solid, 0.0, 1.0)
     sn = 0.5 * (u_n[1:] + u_n[:-1])
     se = 0.5 * (v_e[:, 1:] + v_e[:, :-1])
     sd = 0.5 * (w_d[:, :, 1:] + w_d[:, :, :-1])
     speed = np.sqrt(sn * sn + se * se + sd * sd)
-    m = np.maximum(speed, enhancement * u_zone) / u_ref
+    heights = (np.arange(solid.shape[2]) + 0.5) * scene.grid.dz
+    upstream = np.maximum(wind.speed_at(heights), 0.05 * wind.speed_m_s)
+    m = np.maximum(speed / upstream, scene.options.wake_turbulence_enhancement * u_zone / wind.speed_m_s)
     m[solid] = 0.0
     return m
 

@@ -56,7 +56,7 @@ class BuildingArrays:
         return (self.verts, self.offsets, self.heights, self.bbox)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def in_footprint(x: float, y: float, b: int, verts: np.ndarray, offsets: np.ndarray, bbox: np.ndarray) -> bool:
     """(x, y) inside the footprint of building b (even-odd ray casting along +y)."""
     if x < bbox[b, 0] or x > bbox[b, 1] or y < bbox[b, 2] or y > bbox[b, 3]:
@@ -74,7 +74,7 @@ def in_footprint(x: float, y: float, b: int, verts: np.ndarray, offsets: np.ndar
     return inside
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def building_at(
     x: float, y: float, h: float, verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray
 ) -> int:

@@ -23,9 +23,9 @@ def solve_urban_wind(scene: UrbanScene) -> UrbanWindField:
     geom = BuildingArrays.from_buildings(scene.buildings)
     cell_building = voxelize(g.x_min_m, g.y_min_m, dx, dx, dz, nx, ny, nz, *geom.args())
     solid = cell_building >= 0
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     u0, v0, w0 = initial_field(scene, geom)
-    t_init = time.perf_counter() - t0
+    t_init = time.process_time() - t0
     u, v, w_up, stats = mass_consistent(
         u0, v0, w0, solid, dx, dx, dz, alpha_ratio=scene.options.alpha_ratio,
         tol=scene.options.solver_tol, amg=scene.options.amg,
@@ -36,7 +36,5 @@ def solve_urban_wind(scene: UrbanScene) -> UrbanWindField:
         *geom.args()[:3], building_params(scene), options_array(scene),
     )
     w_d = -w_up
-    tm = turbulence_multiplier(
-        u, v, w_d, solid, u_zone, scene.wind.speed_m_s, scene.options.wake_turbulence_enhancement
-    )
+    tm = turbulence_multiplier(u, v, w_d, solid, u_zone, scene)
     return UrbanWindField(scene, u, v, w_d, cell_building, zone, tm, replace(stats, initial_s=t_init))
