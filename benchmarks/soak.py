@@ -109,7 +109,8 @@ def main() -> None:
         print(f"{name}: memory {growth(samples, args.warmup_s)}")
     if m:
         print(f"sitl: rx {m.group(1)} msgs ({m.group(2)} bad), tx {m.group(3)} msgs")
-    print(f"estimator: {json.dumps({k: est_json.get(k) for k in ('wind_cov_published', 'accepted', 'rejected', 'restarts')})}")
+    keys = ("wind_cov_published", "accepted", "rejected", "restarts")
+    print(f"estimator: {json.dumps({k: est_json.get(k) for k in keys})}")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ FORBIDDEN = [
     ("estimator", "sitl"),  # the estimator runs on a real vehicle: it must not need the simulator
     ("estimator", "mission"),
     ("review", "sitl"),  # a log review must not need the simulator
+    ("recording", "sitl"),  # the recorder listens; it needs no simulator to run
     ("mission.strategies", "sitl"),  # strategies see observations, never the simulator
     ("mission.strategies", "mission.runners"),
 ]

@@ -86,6 +86,10 @@ class PlumePart:
             self.n_detected += reading.detected
             self.peak_mg_m3 = max(self.peak_mg_m3, reading.value_mg_m3)
 
+    def puff_array(self) -> np.ndarray | None:
+        """(K, 4) live puffs (x, y, z NED m, r^2 m^2) of the puff model; None for the Gaussian model."""
+        return self.model.puffs if isinstance(self.model, PuffPlume) else None
+
     @property
     def n_puffs(self) -> int:
         """Live puffs (0 for the Gaussian model)."""
