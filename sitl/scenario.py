@@ -31,7 +31,9 @@ from sitl.world.sensors import (
     SensorSuiteConfig,
     TemperatureConfig,
 )
+from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import WIND_MODELS, KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
+from vehicle.frames import from_direction_deg
 
 TURBULENCE_LEVELS = {"none": 0.0, "low": 0.5, "moderate": 1.0, "high": 2.0}
 
@@ -80,6 +82,7 @@ class Scenario:
     gains: ControllerGains = field(default_factory=ControllerGains)
     flight: FlightConfig = field(default_factory=FlightConfig)
     plume: PlumeSetup | None = None  # the parsed [plume] table
+    urban: UrbanScene | None = None  # the parsed [urban] table: buildings and the wind grid
     source_path: str = ""
 
     def with_seed(self, seed: int) -> Scenario:
@@ -186,6 +189,29 @@ def _parse_wind_model(tbl: dict[str, Any]) -> tuple[str, tuple[tuple[str, Any], 
     if not isinstance(options, dict):
         raise ScenarioError(f"[wind.options]: expected a table of the wind model's options, got {options!r}")
     return str(model), tuple(sorted(options.items()))
+
+
+def _parse_urban(tbl: Any, wind: SteadyWind, wind_model: str) -> UrbanScene:
+    """``[urban]``: buildings, the wind grid, options; the upstream profile is the scenario's ``[wind]``
+    (one source of truth: a log profile, no schedule, since the solved field is steady)."""
+    from sitl.world.urban.config import ConfigError
+    from sitl.world.urban.parse import parse_urban_scene
+
+    t = table("urban", tbl, {"buildings", "grid", "options", "name"})
+    if wind_model not in ("steady", "urban"):
+        raise ScenarioError(f"wind.model = {wind_model!r}: a scenario with [urban] uses the urban wind model")
+    if wind.profile != "log" or wind.changes:
+        raise ScenarioError("[urban] needs [wind] with profile = 'log' and no changes / direction_steps "
+                            "(the urban field is solved once, for one upstream log profile)")  # fmt: skip
+    n, e, _ = wind.velocity_ned
+    profile = {"speed_m_s": math.hypot(n, e), "from_deg": float(from_direction_deg(n, e)),
+               "reference_height_m": wind.reference_height_m,
+               "roughness_length_m": wind.roughness_length_m}  # fmt: skip
+    try:
+        return parse_urban_scene({k: v for k, v in t.items() if k != "name"} | {"wind": profile},
+                                 name=str(t.get("name", "")))  # fmt: skip
+    except ConfigError as err:
+        raise ScenarioError(f"urban.{err}") from None
 
 
 def _parse_turbulence(tbl: dict[str, Any], wind: SteadyWind, duration: float) -> KaimalTurbulence | None:
@@ -327,7 +353,7 @@ def _parse_sensors(tbl: Any, physics_rate_hz: float) -> SensorSuiteConfig:
 
 TOP_KEYS = {
     "name", "description", "duration_s", "seed", "vehicle", "physics", "wind", "turbulence",
-    "start", "route", "sensors", "controller", "flight", "plume",
+    "start", "route", "sensors", "controller", "flight", "plume", "urban",
 }  # fmt: skip
 
 
@@ -366,6 +392,10 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     raw_plume = data.get("plume")
     plume = None if raw_plume is None else parse_plume_table(raw_plume, mode_rate)
     wind_model, wind_options = _parse_wind_model(data.get("wind", {}))
+    urban = None
+    if "urban" in data:
+        urban = _parse_urban(data["urban"], wind, wind_model)
+        wind_model, wind_options = "urban", (*wind_options, ("scene", urban))
     vehicle = data.get("vehicle", "nasa-quad")
     if not isinstance(vehicle, str):
         raise ScenarioError("vehicle: expected a vehicle name ('nasa-quad') or a .toml path")
@@ -387,6 +417,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         gains=gains,
         flight=flight,
         plume=plume,
+        urban=urban,
         source_path=source,
     )
 

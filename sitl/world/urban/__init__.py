@@ -5,10 +5,10 @@ the same kind of field from scratch: buildings as extruded footprints (:mod:`.co
 upstream log profile, the empirical building parameterizations of Roeckle (1990) and QUIC-URB
 (:mod:`.parameterizations`: frontal vortex, rooftop vortex, lee cavity and far wake, street
 canyon vortex), then the variational mass-consistent adjustment on a staggered grid, solved with
-pyamg multigrid-preconditioned conjugate gradients (:mod:`.solver`). :mod:`.field` samples the
-result with numba (and gives the turbulence multiplier hook), :mod:`.geometry` answers "inside a
-building?" and reflects puffs off walls, :mod:`.cache` stores solved fields by a hash of the
-scene. Nothing is computed at import.
+pyamg multigrid-preconditioned conjugate gradients (:mod:`.solver`). :mod:`.field` holds the
+result, :mod:`.sampling` samples it with numba (and the turbulence multiplier hook),
+:mod:`.geometry` answers "inside a building?" and reflects puffs off walls, :mod:`.cache`
+stores solved fields by a hash of the scene. Nothing is computed at import.
 
 Conventions: SI units, NED (x north, y east, z down, ground z = 0; configuration heights are
 positive metres above ground), wind = air-mass velocity in NED, directions in configuration are
@@ -22,58 +22,32 @@ Typical use::
     urban_wind_mean(pos, *field.kernel_args())       # the same from numba code
 """
 
-from .cache import cache_key, default_cache_dir, load_field, load_or_solve, save_field
-from .config import (
-    BoxBuilding,
-    ConfigError,
-    GridSpec,
-    LogWindProfile,
-    PolygonBuilding,
-    UrbanOptions,
-    UrbanScene,
-)
-from .field import UrbanWindField, urban_turbulence_multiplier_at, urban_wind_at, urban_wind_mean, urban_wind_mean_many
-from .geometry import BuildingArrays, building_at, inside_many, reflect_many, reflect_point
-from .layouts import (
-    PAPER_S4_START_NED,
-    PAPER_S4_SUGGESTED_SOURCE_NED,
-    cube_array_scene,
-    isolated_cube_scene,
-    paper_s4_scene,
-    street_canyon_scene,
-)
-from .parse import parse_urban_scene
-from .solve import solve_urban_wind
+from __future__ import annotations
 
-__all__ = [
-    "PAPER_S4_START_NED",
-    "PAPER_S4_SUGGESTED_SOURCE_NED",
-    "BoxBuilding",
-    "BuildingArrays",
-    "ConfigError",
-    "GridSpec",
-    "LogWindProfile",
-    "PolygonBuilding",
-    "UrbanOptions",
-    "UrbanScene",
-    "UrbanWindField",
-    "building_at",
-    "cache_key",
-    "cube_array_scene",
-    "default_cache_dir",
-    "inside_many",
-    "isolated_cube_scene",
-    "load_field",
-    "load_or_solve",
-    "paper_s4_scene",
-    "parse_urban_scene",
-    "reflect_many",
-    "reflect_point",
-    "save_field",
-    "solve_urban_wind",
-    "street_canyon_scene",
-    "urban_turbulence_multiplier_at",
-    "urban_wind_at",
-    "urban_wind_mean",
-    "urban_wind_mean_many",
-]
+import importlib
+from typing import Any
+
+# Names load on first use (PEP 562): the world's wind kernel imports .sampling on every simulator
+# start, and must not pull in the solver (pyamg, scipy.sparse) with the package.
+_EXPORTS = {
+    "cache_key": "cache", "default_cache_dir": "cache", "load_field": "cache", "load_or_solve": "cache",
+    "save_field": "cache",
+    "BoxBuilding": "config", "ConfigError": "config", "GridSpec": "config", "LogWindProfile": "config",
+    "PolygonBuilding": "config", "UrbanOptions": "config", "UrbanScene": "config",
+    "UrbanWindField": "field",
+    "urban_turbulence_multiplier_at": "sampling", "urban_wind_at": "sampling", "urban_wind_mean": "sampling",
+    "urban_wind_mean_many": "sampling",
+    "BuildingArrays": "geometry", "building_at": "geometry", "inside_many": "geometry", "reflect_many": "geometry",
+    "reflect_point": "geometry",
+    "PAPER_S4_START_NED": "layouts", "PAPER_S4_SUGGESTED_SOURCE_NED": "layouts", "cube_array_scene": "layouts",
+    "isolated_cube_scene": "layouts", "paper_s4_scene": "layouts", "street_canyon_scene": "layouts",
+    "parse_urban_scene": "parse", "solve_urban_wind": "solve",
+}  # fmt: skip
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'sitl.world.urban' has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
