@@ -74,3 +74,24 @@ def test_puffs_never_end_inside_a_building() -> None:
 def test_urban_scenario_errors_name_the_field(change: dict, says: str) -> None:
     with pytest.raises(ScenarioError, match=says.replace("[", r"\[").replace("]", r"\]")):
         parse_scenario({**CUBE, **change})
+
+
+def test_paper_s4_layout_is_what_its_file_says() -> None:
+    """The reconstructed Scenario 4 (assumed layout, see the file): start downwind of the source,
+    six buildings between them, neither the start nor the source inside a building."""
+    from sitl.scenario import load_scenario
+    from sitl.world.urban.geometry import BuildingArrays, inside_many
+
+    sc = load_scenario("paper-s4")
+    assert sc.urban is not None and len(sc.urban.buildings) == 6 and sc.wind_model == "urban"
+    start = np.array([*sc.start.position_ned[:2], -5.0])
+    src = np.array(sc.plume.plume.sources[0].position_ned)  # type: ignore[union-attr]
+    arrays = BuildingArrays.from_buildings(sc.urban.buildings)
+    assert not inside_many(np.array([start, src]), *arrays.args()).any()
+    upwind = np.radians(45.0)  # wind from 45 deg: the source lies toward it from the start
+    d = src[:2] - start[:2]
+    assert np.hypot(*d) == pytest.approx(125.0, abs=1.0) and abs(np.arctan2(d[1], d[0]) - upwind) < 0.02
+    # Every building is between them: its centre projects onto the start-source segment.
+    for b in sc.urban.buildings:
+        t = float(np.dot(np.array([b.x_m, b.y_m]) - start[:2], d) / np.dot(d, d))
+        assert 0.2 < t < 0.8, b
