@@ -3,6 +3,10 @@
 Plain, synchronous, deterministic code; the adapters feed it. One job per module:
 
 - ``ukf``: the filter (:class:`~estimator.ukf.WindEstimator`), built on filterpy's UKF.
+- ``config``: its tuning (:class:`~estimator.config.EstimatorConfig`) and the two presets.
+- ``model_kernels``: the force model, process step and accelerometer model (numba).
+- ``gating``: input checks (non-finite, out of range, out of order), counted by reason.
+- ``outputs``: :class:`~estimator.outputs.WindEstimate` and the read-only views of the state.
 - ``direction``: speed and from-direction with uncertainty; the Butterworth direction filter.
 - ``ground_gate``: when to feed the filter around the ground (pause, restart at lift-off).
 - ``inprocess``: the simulator's sensor outputs in lockstep (batch evaluation).

@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +51,7 @@ ATT_TYPES = ("ATTITUDE_QUATERNION", "ATTITUDE")
 VEL_TYPES = ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT")
 
 
-def _time_s(msg) -> float:
+def _time_s(msg: Any) -> float:
     if hasattr(msg, "time_usec"):
         return msg.time_usec * 1e-6
     return msg.time_boot_ms * 1e-3
@@ -83,7 +85,7 @@ class MavlinkWindAdapter:
         # One source per group: the first type seen wins.
         return self.sources.setdefault(group, mtype) == mtype
 
-    def handle(self, msg) -> bool:
+    def handle(self, msg: Any) -> bool:
         """Feed one decoded pymavlink message. Returns True when the estimator took it."""
         mtype = msg.get_type()
         self.counts[mtype] += 1
@@ -107,7 +109,7 @@ class MavlinkWindAdapter:
             return True
         return False
 
-    def _imu(self, msg, mtype: str) -> bool:
+    def _imu(self, msg: Any, mtype: str) -> bool:
         t = _time_s(msg)
         if mtype == "SCALED_IMU":
             acc = np.array([msg.xacc, msg.yacc, msg.zacc]) * (G0 / 1000.0)
@@ -117,7 +119,7 @@ class MavlinkWindAdapter:
             gyr = np.array([msg.xgyro, msg.ygyro, msg.zgyro], dtype=float)
         return self.est.imu(t, acc, gyr)
 
-    def _attitude(self, msg, mtype: str) -> bool:
+    def _attitude(self, msg: Any, mtype: str) -> bool:
         t = _time_s(msg)
         if mtype == "ATTITUDE_QUATERNION":
             q = np.array([msg.q1, msg.q2, msg.q3, msg.q4], dtype=float)
@@ -128,7 +130,7 @@ class MavlinkWindAdapter:
             q = euler_to_quat(*vals)
         return self.est.set_attitude(t, q)
 
-    def _velocity(self, msg, mtype: str) -> bool:
+    def _velocity(self, msg: Any, mtype: str) -> bool:
         t = _time_s(msg)
         if mtype == "LOCAL_POSITION_NED":
             return self.est.gnss_velocity(t, np.array([msg.vx, msg.vy, msg.vz], dtype=float))
@@ -140,7 +142,7 @@ class MavlinkWindAdapter:
         cog = math.radians(msg.cog * 0.01)
         return self.est.gnss_velocity(t, np.array([speed * math.cos(cog), speed * math.sin(cog)]))
 
-    def _esc(self, index: int, rpms, t: float) -> bool:
+    def _esc(self, index: int, rpms: Sequence[float], t: float) -> bool:
         for i, rpm in enumerate(rpms):
             k = index + i
             if k < len(self.esc_to_rotor):
@@ -174,7 +176,7 @@ class MavlinkWindAdapter:
             math.sqrt(max(var_v, 0.0)),
         )
 
-    def run(self, connection, publish_hz: float = 5.0, duration_s: float | None = None) -> None:
+    def run(self, connection: Any, publish_hz: float = 5.0, duration_s: float | None = None) -> None:
         """Read messages from a pymavlink connection (``mavutil.mavlink_connection``) and publish
         WIND_COV at ``publish_hz`` of message time, until ``duration_s`` of message time or EOF."""
         t0 = None
