@@ -12,12 +12,31 @@ import math
 from collections import Counter
 
 import numpy as np
+from numba import njit
 
 # Physical plausibility limits for raw inputs (beyond them a sample is a fault, not data).
 ACCEL_LIMIT_M_S2 = 160.0  # 16 g, a typical accelerometer range
 GYRO_LIMIT_RAD_S = 35.0  # 2000 deg/s
 VELOCITY_LIMIT_M_S = 100.0
 QUAT_NORM_TOL = 0.1
+
+
+@njit(cache=True)
+def within(a: np.ndarray, lo: float, hi: float) -> bool:
+    """True when every value of the 1-D array ``a`` lies in [lo, hi] (False for NaN)."""
+    for i in range(a.shape[0]):  # noqa: SIM110 - a numba kernel: a loop, not a generator
+        if not lo <= a[i] <= hi:
+            return False
+    return True
+
+
+@njit(cache=True)
+def norm(a: np.ndarray) -> float:
+    """Euclidean norm of the 1-D array ``a`` (NaN or inf if a value is not finite)."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i] * a[i]
+    return np.sqrt(s)
 
 
 class InputGate:
@@ -45,28 +64,24 @@ class InputGate:
         """Record ``t`` as the stream's last accepted time."""
         self._last_in[stream] = t
 
-    @staticmethod
-    def finite(a: np.ndarray, shape: int) -> bool:
-        """True when ``a`` has shape ``(shape,)`` and only finite values."""
-        return a.shape == (shape,) and bool(np.all(np.isfinite(a)))
-
     def attitude(self, t: float, q_wxyz: np.ndarray) -> np.ndarray | None:
         """A unit quaternion [w, x, y, z] (body FRD -> NED), or None (rejected and counted)."""
         q = np.asarray(q_wxyz, dtype=float)
         if not self.check_time("attitude", t):
             return None
-        if not self.finite(q, 4) or abs(np.linalg.norm(q) - 1.0) > QUAT_NORM_TOL:
+        nq = norm(q) if q.shape == (4,) else math.nan
+        if not abs(nq - 1.0) <= QUAT_NORM_TOL:  # also NaN / inf
             self.reject("attitude:bad_value")
             return None
         self.mark("attitude", t)
-        return q / np.linalg.norm(q)
+        return q / nq
 
     def rates(self, t: float, rates_frd: np.ndarray) -> np.ndarray | None:
         """Body rates (FRD, rad/s), or None (rejected and counted)."""
         w = np.asarray(rates_frd, dtype=float)
         if not self.check_time("rates", t):
             return None
-        if not self.finite(w, 3) or np.any(np.abs(w) > GYRO_LIMIT_RAD_S):
+        if w.shape != (3,) or not within(w, -GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S):
             self.reject("rates:bad_value")
             return None
         self.mark("rates", t)
@@ -77,7 +92,7 @@ class InputGate:
         w = np.asarray(w_rot, dtype=float)
         if not self.check_time("rotors", t):
             return None
-        if not self.finite(w, 4) or np.any(w < 0.0) or np.any(w > 2.0 * w_max):
+        if w.shape != (4,) or not within(w, 0.0, 2.0 * w_max):
             self.reject("rotors:bad_value")
             return None
         self.mark("rotors", t)
@@ -92,13 +107,13 @@ class InputGate:
         a = np.asarray(accel_frd, dtype=float)
         if not self.check_time("imu", t):
             return None
-        if not self.finite(a, 3) or np.any(np.abs(a) > ACCEL_LIMIT_M_S2):
+        if a.shape != (3,) or not within(a, -ACCEL_LIMIT_M_S2, ACCEL_LIMIT_M_S2):
             self.reject("imu:bad_value")
             return None
         g = None
         if gyro_frd is not None:
             g = np.asarray(gyro_frd, dtype=float)
-            if not self.finite(g, 3) or np.any(np.abs(g) > GYRO_LIMIT_RAD_S):
+            if g.shape != (3,) or not within(g, -GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S):
                 self.reject("imu:bad_value")
                 return None
         if t_filter is not None and t <= t_filter:
@@ -117,7 +132,7 @@ class InputGate:
         if not self.check_time("gnss", t_valid):
             return None
         nz = v.shape[0] if v.ndim == 1 else 0
-        if nz not in (2, 3) or not self.finite(v, nz) or np.linalg.norm(v) > VELOCITY_LIMIT_M_S:
+        if nz not in (2, 3) or not norm(v) <= VELOCITY_LIMIT_M_S:
             self.reject("gnss:bad_value")
             return None
         return v

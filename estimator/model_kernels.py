@@ -18,7 +18,7 @@ from vehicle.rotor_model import rotor_wrench
 
 
 @njit(cache=True)
-def _specific_force(
+def specific_force(
     x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, i_scale: int, fz_ref: float
 ) -> np.ndarray:
     """Model specific force (FRD, m/s^2) at state x: rotor forces over mass at the airspeed.
@@ -50,7 +50,7 @@ def _specific_force(
 
 
 @njit(cache=True)
-def _process_batch(
+def process_batch(
     sigmas: np.ndarray,
     out: np.ndarray,
     dt: float,
@@ -69,7 +69,7 @@ def _process_batch(
     pr, qr, rr = rates[0], rates[1], rates[2]
     for k in range(sigmas.shape[0]):
         x = sigmas[k]
-        f = _specific_force(x, R, rates, w_rot, p, i_scale, fz_ref)
+        f = specific_force(x, R, rates, w_rot, p, i_scale, fz_ref)
         u, v, w = x[0], x[1], x[2]
         # Gravity in body axes is the third row of R (R^T [0, 0, g]); the rates x v term is
         # the rotation of the body axes the velocity is expressed in.
@@ -84,7 +84,7 @@ def _process_batch(
 
 
 @njit(cache=True)
-def _accel_batch(
+def accel_batch(
     sigmas: np.ndarray,
     R: np.ndarray,
     rates: np.ndarray,
@@ -99,7 +99,7 @@ def _accel_batch(
     n = sigmas.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        f = _specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
+        f = specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
         for i in range(3):
             j = bias_idx[i]
             out[k, i] = f[i] + (sigmas[k, j] if j >= 0 else 0.0)

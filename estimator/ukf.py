@@ -55,48 +55,34 @@ are bridged by prediction only (covariance grows), in sub-steps of at most ``max
 
 The class is plain, synchronous and deterministic: no I/O, no threads, no randomness.
 
+Implementation: the unscented filter of filterpy (``UnscentedKalmanFilter`` with
+``MerweScaledSigmaPoints``), written out as numba kernels over the filter's small arrays
+(``sigma_kernels``, ``step_kernels``): one IMU step is three compiled calls. filterpy is the
+reference: ``tests/test_estimator_reference.py`` runs both on the same data.
+
 Files: this module is the filter (state, prediction, updates, transient detector, GNSS delay);
-``estimator.config`` its tuning and presets, ``estimator.model_kernels`` the force model
-(numba), ``estimator.gating`` the input checks, ``estimator.outputs`` the estimate.
+``estimator.config`` its tuning and presets, ``estimator.model_kernels`` the force model,
+``estimator.step_kernels`` / ``estimator.sigma_kernels`` the unscented arithmetic (numba),
+``estimator.gating`` the input checks, ``estimator.outputs`` the estimate.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter, deque
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
-from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from estimator.config import PRESETS, EstimatorConfig
 from estimator.direction import DirectionFilter
 from estimator.gating import InputGate
-from estimator.model_kernels import _accel_batch, _process_batch
 from estimator.outputs import EstimatorOutputs, WindEstimate
+from estimator.sigma_kernels import apply_gain, merwe_weights
+from estimator.step_kernels import Work, accel_innovation, predict, velocity_innovation
 from vehicle.frames import quat_to_dcm
 from vehicle.params import P_G, P_WMAX, VehicleParams
 
 __all__ = ["PRESETS", "EstimatorConfig", "WindEstimate", "WindEstimator"]
-
-
-class _UKF(UnscentedKalmanFilter):  # type: ignore[misc]  # filterpy is untyped
-    """filterpy's UKF with the two Python loops over sigma points replaced by array code.
-
-    ``compute_process_sigmas`` runs the numba process kernel over all sigma points at once
-    and ``cross_variance`` is one matrix product; predict is filterpy's own, the update is
-    :meth:`WindEstimator._ukf_update` (restricted force-scale gain).
-    """
-
-    proc_args: tuple[Any, ...] = ()
-
-    def compute_process_sigmas(self, dt: float, fx: Any = None, **fx_args: Any) -> None:  # noqa: ARG002
-        sigmas = self.points_fn.sigma_points(self.x, self.P)
-        _process_batch(sigmas, self.sigmas_f, dt, *self.proc_args)
-
-    def cross_variance(self, x: np.ndarray, z: np.ndarray, sigmas_f: np.ndarray, sigmas_h: np.ndarray) -> np.ndarray:
-        return ((sigmas_f - x).T * self.Wc) @ (sigmas_h - z)
 
 
 class WindEstimator(EstimatorOutputs):
@@ -141,23 +127,23 @@ class WindEstimator(EstimatorOutputs):
             q.append(cfg.bias_walk_m_s2**2)
             x0.append(0.0)
         self.n = n
-        points = MerweScaledSigmaPoints(self.n, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
-        self.ukf = _UKF(dim_x=self.n, dim_z=3, dt=0.004, hx=None, fx=None, points=points)
-        self.ukf.x = np.array(x0)
-        self.ukf.P = np.diag(P0)
+        self._Wm, self._Wc, self._c = merwe_weights(n, cfg.alpha, cfg.beta, cfg.kappa)
+        self._work = Work(n)
+        self.x = np.array(x0, dtype=float)  # state mean (see the module docstring)
+        self.P = np.diag(np.array(P0, dtype=float))  # state covariance
         self._q_density = np.array(q)
         self._R_accel = np.diag(np.square(cfg.accel_noise_m_s2))
         self._R_gnss = np.diag(np.square(cfg.gnss_vel_noise_m_s))
         self.t: float | None = None  # filter time, s
         self._t_first: float | None = None  # time of the first prediction, s
         self.scale_released = not cfg.scale_state
-        self._nu_ema = np.zeros(3)
+        self._nu_ema = [0.0, 0.0]  # low-passed normalized horizontal accel innovation
         self._fz_ref = -float(self._p[P_G])  # low-passed measured body-z specific force, m/s^2
         self._fz_seen = False
         self._ema_alpha = 1.0
         self._transient_left = 0.0  # s
         self._wind_q_gain = 1.0  # wind process-noise multiplier (> 1 while a transient is detected)
-        self._nu_slow = np.zeros(3)
+        self._nu_slow = [0.0, 0.0]  # its slow baseline
         self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
         self._dt_last = 0.0
         self.transients = 0  # times the transient detector fired
@@ -165,7 +151,6 @@ class WindEstimator(EstimatorOutputs):
         self._q_att: np.ndarray | None = None
         self._rates = np.zeros(3)
         self._w_rot: np.ndarray | None = None
-        self._fresh_sigmas = True  # sigmas_f reflect the current (x, P)
         self._hist: deque[tuple[float, np.ndarray]] = deque()
         self._gate = InputGate()
         self.rejected: Counter[str] = self._gate.rejected
@@ -259,7 +244,7 @@ class WindEstimator(EstimatorOutputs):
             past = self._history_at(t_valid)
             if past is None:
                 return self._reject("gnss:stale")
-            shift = self._R @ self.ukf.x[0:3] - past
+            shift = self._R @ self.x[0:3] - past
         self._gate.mark("gnss", t_valid)
         self._update(v + shift[:nz], self._R_gnss[:nz, :nz], "gnss")
         self.accepted["gnss"] += 1
@@ -279,20 +264,19 @@ class WindEstimator(EstimatorOutputs):
             self._dt_last = span
             self._ema_alpha = min(1.0, span / self.config.transient_tau_s)
         span = min(t - self.t, self.config.max_gap_s)
-        if span > 0.0 and self.ready:
+        if span > 0.0 and self._R is not None and self._w_rot is not None:
             n = max(1, math.ceil(span / self.config.max_step_s - 1e-9))
             dt = span / n
             tau = self.config.vertical_wind_tau_s
             decay = math.exp(-dt / tau) if tau else 1.0
-            self.ukf.proc_args = (self._R, self._rates, self._w_rot, self._p, decay, self._i_scale, self._fz_ref)
-            q = self._q_density
-            if self._wind_q_gain != 1.0:
-                q = q.copy()
-                q[3:6] *= self._wind_q_gain
-            for _ in range(n):
-                self.ukf.Q = np.diag(q * dt)
-                self._guarded(lambda: self.ukf.predict(dt=dt))
-            self._fresh_sigmas = True
+            w = self._work
+            failed = predict(
+                self.x, self.P, n, dt, self._R, self._rates, self._w_rot, self._p, decay, self._i_scale,
+                self._fz_ref, self._q_density, self._wind_q_gain, self._Wm, self._Wc, self._c,
+                w.sig, w.sig_f, w.L, w.x_new, w.P_new,
+            )  # fmt: skip
+            if failed:
+                self.rejected["numerical"] += failed
         self.t = max(self.t, t)
 
     def _maybe_release_scale(self, t: float) -> None:
@@ -304,75 +288,72 @@ class WindEstimator(EstimatorOutputs):
             return
         # The horizontal wind converges whatever the model error (the vertical may not: the
         # scale is what fixes it); release anyway after three hold times.
-        if np.max(np.diag(self.ukf.P)[3:5]) > cfg.scale_release_wind_sigma_m_s**2 and held < 3.0 * cfg.scale_hold_s:
+        if max(self.P[3, 3], self.P[4, 4]) > cfg.scale_release_wind_sigma_m_s**2 and held < 3.0 * cfg.scale_hold_s:
             return
         i = self._i_scale
-        self.ukf.P[i, :] = 0.0
-        self.ukf.P[:, i] = 0.0
-        self.ukf.P[i, i] = cfg.scale_sigma0**2
+        self.P[i, :] = 0.0
+        self.P[:, i] = 0.0
+        self.P[i, i] = cfg.scale_sigma0**2
         self._q_density[i] = cfg.scale_walk_per_sqrt_s**2
         self.scale_released = True
 
-    def _update(self, z: np.ndarray, R: np.ndarray, kind: str) -> None:
-        ukf = self.ukf
-        Rm, w_rot = self._R, self._w_rot
-        if Rm is None or w_rot is None:  # not ready: callers check first
-            return
-        if not self._fresh_sigmas:
-            # filterpy's update reuses the sigma points drawn after predict; a second update
-            # in the same step needs points drawn from the updated (x, P).
-            ukf.sigmas_f = ukf.points_fn.sigma_points(ukf.x, ukf.P)
-        if kind == "accel":
-            h = _accel_batch(ukf.sigmas_f, Rm, self._rates, w_rot, self._p, self._i_scale, self._bias_idx, self._fz_ref)
-        else:
-            h = (ukf.sigmas_f[:, 0:3] @ Rm.T)[:, : len(z)]
-        self._guarded(lambda: self._ukf_update(z, R, h, kind))
-        self._fresh_sigmas = False
-
-    def _ukf_update(self, z: np.ndarray, R: np.ndarray, h: np.ndarray, kind: str) -> None:
-        """Unscented update with measurement sigma points ``h``; the force scale only learns
+    def _update(self, z: np.ndarray, Rn: np.ndarray, kind: str) -> None:
+        """Unscented update with sigma points of the current (x, P); the force scale only learns
         from the body-z accelerometer innovation, and not during a transient.
 
         The scale's gain row is restricted (a suboptimal gain), so the covariance is updated
-        in the general form P - K Pxz^T - Pxz K^T + K S K^T, valid for any gain.
+        in the general form P - K Pxz^T - Pxz K^T + K S K^T, valid for any gain. A numerical
+        failure leaves (x, P) as they were (1e-6 added to the diagonal of P) and is counted.
         """
-        ukf = self.ukf
-        Wm, Wc = ukf.Wm, ukf.Wc
-        zp = Wm @ h
-        dz = h - zp
-        S = (dz.T * Wc) @ dz + R
-        Pxz = ((ukf.sigmas_f - ukf.x).T * Wc) @ dz
-        K = np.linalg.solve(S, Pxz.T).T
-        y = z - zp
-        i = self._i_scale
+        Rm, w_rot = self._R, self._w_rot
+        if Rm is None or w_rot is None:  # not ready: callers check first
+            return
+        w = self._work
+        m = w.meas[z.shape[0]]
         if kind == "accel":
-            self._watch_innovation(y, S)
-        if i >= 0:
-            K[i, :] = 0.0
-            if kind == "accel" and self.scale_released and self._transient_left <= 0.0:
-                K[i, 2] = Pxz[i, 2] / S[2, 2]
-            KP = K @ Pxz.T
-            ukf.P = ukf.P - KP - KP.T + K @ S @ K.T
+            ok = accel_innovation(
+                self.x, self.P, z, Rn, Rm, self._rates, w_rot, self._p, self._i_scale, self._bias_idx,
+                self._fz_ref, self._Wm, self._Wc, self._c, w.sig, w.L, m.S, m.Pxz, m.y, m.K, m.Lz,
+            )  # fmt: skip
         else:
-            ukf.P = ukf.P - K @ S @ K.T
-        ukf.x = ukf.x + K @ y
+            ok = velocity_innovation(
+                self.x, self.P, z, Rn, Rm, self._Wm, self._Wc, self._c, w.sig, w.L, m.h, m.S, m.Pxz, m.y, m.K, m.Lz
+            )
+        if ok:
+            if kind == "accel":
+                self._watch_innovation(m.y, m.S)
+            i = self._i_scale
+            if i >= 0:
+                m.K[i, :] = 0.0
+                if kind == "accel" and self.scale_released and self._transient_left <= 0.0:
+                    m.K[i, 2] = m.Pxz[i, 2] / m.S[2, 2]
+            ok = apply_gain(self.x, self.P, m.K, m.S, m.Pxz, m.y, i >= 0, w.x_new, w.P_new)
+        if not ok:
+            self.P[np.diag_indices(self.n)] += 1e-6
+            self.rejected["numerical"] += 1
 
     def _watch_innovation(self, y: np.ndarray, S: np.ndarray) -> None:
         """Transient detector: a low-passed normalized horizontal accelerometer innovation far
         from zero means the wind is changing faster than its random walk. While it lasts the wind
         process noise is raised (``transient_wind_q_gain``), and for ``transient_hold_s`` after
-        it the force scale is frozen (a wind step must not be explained by a mass change)."""
+        it the force scale is frozen (a wind step must not be explained by a mass change).
+
+        Scalar arithmetic on the two horizontal axes (the z axis never enters the decision)."""
         cfg = self.config
         a = self._ema_alpha
-        nu = y / np.sqrt(np.diag(S))
-        self._nu_ema = (1.0 - a) * self._nu_ema + a * nu
         b = min(1.0, self._dt_last / cfg.transient_baseline_tau_s)
-        self._nu_slow = (1.0 - b) * self._nu_slow + b * nu
+        ema, slow = self._nu_ema, self._nu_slow
+        yl = y.tolist()  # Python floats: cheaper than numpy scalars here
+        d = 0.0
+        for k in (0, 1):
+            nu = yl[k] / math.sqrt(S.item(k, k))
+            ema[k] = (1.0 - a) * ema[k] + a * nu
+            slow[k] = (1.0 - b) * slow[k] + b * nu
+            d = max(d, abs(ema[k] - slow[k]))
         # Horizontal axes only, against the slow baseline: a persistent innovation (z, or a
         # steady bias on x and y) is what a force-model error looks like and the scale must
         # learn from it; a wind step is a fast change on x and y.
-        d = self._nu_ema - self._nu_slow
-        if max(abs(d[0]), abs(d[1])) > cfg.transient_threshold:
+        if d > cfg.transient_threshold:
             if self._firing_s == 0.0:
                 self.transients += 1
             self._firing_s += self._dt_last
@@ -388,23 +369,10 @@ class WindEstimator(EstimatorOutputs):
             self._firing_s = 0.0
             self._wind_q_gain = 1.0
 
-    def _guarded(self, op: Callable[[], None]) -> None:
-        """Run a filter operation; on a numerical failure restore the state and count it."""
-        x, P = self.ukf.x.copy(), self.ukf.P.copy()
-        try:
-            op()
-            P = self.ukf.P
-            self.ukf.P = 0.5 * (P + P.T)
-            if not (np.all(np.isfinite(self.ukf.x)) and np.all(np.isfinite(self.ukf.P))):
-                raise np.linalg.LinAlgError("non-finite state")
-        except np.linalg.LinAlgError:
-            self.ukf.x, self.ukf.P = x, P + 1e-6 * np.eye(self.n)
-            self.rejected["numerical"] += 1
-
     def _record_history(self) -> None:
         if self._R is None or self.t is None:
             return
-        v_ned = self._R @ self.ukf.x[0:3]
+        v_ned = self._R @ self.x[0:3]
         self._hist.append((self.t, v_ned))
         horizon = self.t - self.config.gnss_history_s
         while self._hist and self._hist[0][0] < horizon:

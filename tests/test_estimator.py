@@ -35,9 +35,12 @@ def _steady(wind, duration, changes=()):
 
 # ------------------------------------------------------------------ filter behaviour in the loop
 def test_cold_start_converges_on_constant_wind():
-    log = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2).run()
-    assert np.allclose(log.wind_est[0], 0.0, atol=1.5), "starts from no prior (zero wind)"
-    assert log.wind_sigma[0].min() > 3.0, "with a large covariance"
+    runner = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2)
+    e0 = runner.estimator.estimate(advance_direction=False)
+    assert np.all(e0.wind_ned == 0.0) and e0.sigma_ned.min() >= 10.0, "starts from no prior (zero wind, 10 m/s)"
+    log = runner.run()
+    # The first sample updates, but cannot tell the wind from the unknown ground velocity (2 m/s prior).
+    assert log.wind_sigma[0, :2].min() > 2.0
     late = log.t > 4.0
     err = log.wind_est[late] - log.wind_true[late]
     # 0.35, not the exact-model goal 0.3: the force scale is released ~1.5 s after the start
@@ -50,12 +53,18 @@ def test_cold_start_converges_on_constant_wind():
 
 
 def test_tracks_a_wind_step():
+    # The re-convergence time of one seed is noisy (seeds 3-7: 1.7-3.1 s, filterpy-era code
+    # 2.5-4.6 s), so the goal (<= 3 s, as in benchmarks/README.md) is checked on the mean of three.
     sc = _steady((-8.0, 0.0, 0.0), 11.0, [WindChange(5.0, (-4.0, -6.0, 0.0))])
-    log = InProcessRunner(sc, seed=3).run()
-    a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=3.0, step_times=(5.0,))
-    assert a.reconverge_s is not None and a.reconverge_s < 3.0
-    end = log.t > 9.0
-    assert np.allclose(log.wind_est[end, :2].mean(axis=0), [-4.0, -6.0], atol=0.3)
+    times = []
+    for seed in (3, 4, 5):
+        log = InProcessRunner(sc, seed=seed).run()
+        a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=3.0, step_times=(5.0,))
+        assert a.reconverge_s is not None and a.reconverge_s < 4.0
+        times.append(a.reconverge_s)
+        end = log.t > 9.0
+        assert np.allclose(log.wind_est[end, :2].mean(axis=0), [-4.0, -6.0], atol=0.3)
+    assert np.mean(times) < 3.0, times
 
 
 def test_wind_step_does_not_move_the_force_scale():
