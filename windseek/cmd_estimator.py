@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from estimator.live import LiveConfig, LiveCore
+from estimator.mavlink_adapter import wind_cov_message
 from estimator.mavlink_decode import PREFERENCE
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
@@ -174,8 +175,6 @@ class Publisher:
 
     def due(self) -> Any | None:
         """The WIND_COV message to send now, or None."""
-        from estimator.mavlink_adapter import wind_cov_message
-
         core = self.core
         t = core.t
         if not math.isfinite(t) or core.paused():
