@@ -233,9 +233,10 @@ class LiveCore:
         if mtype == "SYSTEM_TIME":
             boot_ms = int(msg.time_boot_ms)
             back = self._boot_ms is not None and boot_ms < self._boot_ms - 1000.0 * self.config.reset_jump_s
-            self._boot_ms = boot_ms
             if back:
                 self._clock_reset(boot_ms * 1e-3, "SYSTEM_TIME time_boot_ms went back")
+            self._boot_ms = boot_ms
+            if back:
                 return True
         if t is None:
             return True
@@ -258,6 +259,7 @@ class LiveCore:
         self._restart("clock reset")
         self.select.restart_clock()
         self._behind = 0
+        self._boot_ms = None  # the next SYSTEM_TIME starts the new boot (no second reset)
         self.t = t
 
     def _heartbeat(self, msg: Any) -> None:

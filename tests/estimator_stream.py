@@ -3,7 +3,7 @@
 :func:`record` flies a scenario in the lockstep simulator; :func:`autopilot_messages` turns it into
 the messages an autopilot would send (message objects with their time, in time order), and
 :func:`over_the_wire` packs them with a system/component id and parses the bytes back, as a
-receiver on the link gets them. Rates: HEARTBEAT and EXTENDED_SYS_STATE 1 Hz, the IMU every
+receiver on the link gets them. Rates: HEARTBEAT, EXTENDED_SYS_STATE, SYSTEM_TIME 1 Hz, the IMU every
 ``imu_every``-th sample (250 Hz / n), ATTITUDE_QUATERNION 50 Hz, LOCAL_POSITION_NED 10 Hz,
 rotor speeds at the ESC rate (50 Hz) as ESC_STATUS, or as actuator outputs from the simulator's
 TRUE rotor commands through an :class:`estimator.motor_output.OutputMap` (PX4 quad-X order).
@@ -57,6 +57,7 @@ def autopilot_messages(f: Flight, imu: str = "HIL_SENSOR", imu_every: int = 1, r
         if k % 250 == 0:
             out.append((t, mavlink.MAVLink_heartbeat_message(mav_type, 12, 129, 0, 4, 3)))
             out.append((t, mavlink.MAVLink_extended_sys_state_message(0, 2)))  # in the air
+            out.append((t, mavlink.MAVLink_system_time_message(1_700_000_000_000_000 + us, ms)))
         while esc_i < len(f.esc) and f.esc[esc_i][0] <= t + 1e-9:
             if rotors == "ESC_STATUS":
                 rpm = [int(round(w * RAD_S_TO_RPM)) for w in f.esc[esc_i][1]]
