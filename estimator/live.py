@@ -162,8 +162,22 @@ class LiveCore:
         if self.paused():
             return "on the ground or landing: filter paused"
         if self.output() is None:
-            return self.select.waiting_line()
+            return self.select.waiting_line() if self.select.missing() else self._waiting_detail()
         return "estimating"
+
+    def _waiting_detail(self) -> str:
+        """Every input has a message, yet the filter has not run: say which sample it still lacks."""
+        why = []
+        for name in self.est.missing_inputs():
+            if name == "rotor speeds" and self._esc_failed.any():
+                rotors = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_failed))
+                why.append(f"no rotor speeds (ESC_INFO reports the ESC of rotor {rotors} failed)")
+            elif name == "rotor speeds" and self.select.chosen["rotors"] in ("ESC_STATUS", "RAW_RPM"):
+                seen = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_seen)) or "none"
+                why.append(f"no complete set of rotor speeds (rotors reported: {seen})")
+            else:
+                why.append(f"no {name} accepted yet")
+        return "waiting for inputs: " + ("; ".join(why) if why else "no IMU sample accepted yet")
 
     # ------------------------------------------------------------------ input
     def handle(self, msg: Any) -> None:

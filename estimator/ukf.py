@@ -200,6 +200,10 @@ class WindEstimator(EstimatorOutputs):
         """True once attitude and rotor speeds have been received (the model needs both)."""
         return self._R is not None and self._w_rot is not None
 
+    def missing_inputs(self) -> list[str]:
+        """The held inputs not received yet: ``attitude``, ``rotor speeds`` (empty when ready)."""
+        return [name for name, v in (("attitude", self._R), ("rotor speeds", self._w_rot)) if v is None]
+
     def imu(self, t: float, accel_frd: np.ndarray, gyro_frd: np.ndarray | None = None) -> bool:
         """IMU sample at time t: predict to t, then update with the specific force (FRD, m/s^2).
 

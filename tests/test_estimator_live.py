@@ -226,6 +226,16 @@ def test_missing_rotor_speeds_are_named_and_nothing_is_published(flight: Flight)
     assert sent == [] and core.output() is None and core.summary()["wind_ned_m_s"] is None
 
 
+def test_failed_esc_telemetry_is_named(flight: Flight) -> None:
+    info = mavlink.MAVLink_esc_info_message(0, 1000, 1, 4, 5, 15, [0, 32, 0, 0], [0] * 4, [2500] * 4)
+    msgs = autopilot_messages(flight)[:2000]
+    msgs.insert(5, (0.0, info))  # after the HEARTBEAT
+    core = _core()
+    _run(core, over_the_wire([(1, 1, msgs)], order="concat"))
+    assert core.output() is None
+    assert core.status_line() == "waiting for inputs: no rotor speeds (ESC_INFO reports the ESC of rotor 2 failed)"
+
+
 @pytest.mark.parametrize("kind", ["SCALED_IMU", "RAW_IMU"])
 def test_ardupilot_imu_units(flight: Flight, kind: str) -> None:
     """SCALED_IMU (mG, mrad/s per common.xml) and RAW_IMU (ArduPilot fills it in the same units)."""
