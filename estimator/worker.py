@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from estimator.live import LiveCore
+from estimator.live import LiveCore, warm_up
 from estimator.mavlink_decode import PREFERENCE
 
 IMU_TYPES = frozenset(PREFERENCE["imu"])
@@ -66,11 +66,15 @@ class EstimatorWorker:
         core: the live core to run (owned by the worker thread once started).
         max_queue: most messages queued; at least 10.
         batch: most messages fed between two snapshots.
+        warm: compile or load the numba kernels now, in the caller's thread: loading them holds
+            the GIL (tenths of a second from the cache), so do it before the event loop runs.
     """
 
-    def __init__(self, core: LiveCore, max_queue: int = 2000, batch: int = 64) -> None:
+    def __init__(self, core: LiveCore, max_queue: int = 2000, batch: int = 64, warm: bool = True) -> None:
         if max_queue < 10:
             raise ValueError(f"max_queue = {max_queue}: must be >= 10")
+        if warm:
+            warm_up(core.config)
         self.core = core
         self.max_queue = max_queue
         self.batch = batch

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from estimator.live import LiveConfig, LiveCore
+from estimator.live import LiveConfig, LiveCore, warm_up
 from estimator.mavlink_adapter import wind_cov_message
 from estimator.mavlink_decode import PREFERENCE
 from wire.jsonsafe import json_safe
@@ -144,26 +144,6 @@ def make_core(args: argparse.Namespace) -> LiveCore:
     return LiveCore(cfg)
 
 
-def warm_up(core: LiveCore) -> None:
-    """Run a throw-away filter for a few hovering samples, so the numba kernels are compiled (or loaded
-    from the cache) before the first real sample: on a fresh machine that takes 15-25 s, which would
-    otherwise stall the filter at take-off."""
-    from estimator.ukf import WindEstimator
-
-    est = WindEstimator(core.config.vehicle, core.config.estimator)
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    est.set_attitude(0.0, q)
-    est.set_rotor_speeds(0.0, np.full(4, 393.0))
-    for i in range(1, 40):
-        t = 0.004 * i
-        est.imu(t, np.array([0.0, 0.0, -9.81]), np.zeros(3))
-        if i % 10 == 0:
-            est.set_attitude(t, q)
-            est.gnss_velocity(t, np.zeros(3))
-            est.gnss_velocity(t + 0.001, np.zeros(2))
-    est.estimate()
-
-
 class Publisher:
     """WIND_COV at ``rate`` Hz of vehicle time, for estimates the filter made (never while paused)."""
 
@@ -259,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         core = make_core(args)
-        warm_up(core)  # a signal meanwhile ends the loop below at once, with the summary
+        warm_up(core.config)  # a signal meanwhile ends the loop below at once, with the summary
         conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
                                           source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
         conn.mav.robust_parsing = True
