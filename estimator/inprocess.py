@@ -119,8 +119,11 @@ class InProcessRunner:
 
     def _consume(self, out: dict[str, list]) -> None:
         sim = self.sim
-        rows = sim.truth_log[self._truth_idx:]
-        self._truth_idx = len(sim.truth_log)
+        log = sim.truth_log
+        if log is None:
+            raise RuntimeError("the simulation records no truth (record_truth=False)")
+        rows = log[self._truth_idx :]
+        self._truth_idx = len(log)
         truth = np.concatenate(rows) if rows else np.zeros((0, 28))
         esc = list(out["esc"])
         self._pending_gnss.extend(out["gnss"])
