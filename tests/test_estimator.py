@@ -13,11 +13,11 @@ import pytest
 from scipy import signal
 
 from estimator.direction import DirectionFilter, angle_diff_deg, from_direction_deg, speed_direction
-from estimator.inprocess import InProcessRunner
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.metrics import accuracy, moving_average, reconvergence_time
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
+from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import load_scenario
 from sitl.world.wind import SteadyWind, WindChange
 from vehicle.frames import euler_to_quat
