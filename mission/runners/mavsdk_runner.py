@@ -30,7 +30,6 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -105,17 +104,14 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     extra: tuple[str, ...] = ()
     sink = None
     upwind = UpwindFilter(params)
-    vehicle_box: dict[str, Any] = {}
     if cfg.wind == "estimated":
         extra = ESTIMATOR_MESSAGES
-        sink = _lazy_sink(vehicle_box)
+        estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind)  # before any telemetry arrives
+        sink = estimated.sink
     elif cfg.wind == "mavlink":
         extra = ("WIND_COV",)
     try:
         async with MavsdkVehicle(link, cfg.say, sink, extra) as v:
-            if cfg.wind == "estimated":
-                estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind, v.state)
-                vehicle_box["wind"] = estimated
             wind: MissionWind = estimated or (WindCovWind(v, upwind) if cfg.wind == "mavlink" else NoLiveWind())
             loop = MissionLoop(v, make_strategy(cfg.strategy), params, wind, cfg.limits,
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
@@ -146,18 +142,6 @@ async def _loop_lag(lags: list[float], period_s: float = 0.02) -> None:
         await asyncio.sleep(period_s)
         if len(lags) < 200_000:
             lags.append(max(0.0, (time.monotonic() - t0 - period_s) * 1e3))
-
-
-def _lazy_sink(box: dict[str, Any]) -> Callable[[str, dict[str, Any], float], None]:
-    """The estimator's sink before the estimator exists (the connection comes first): inputs that
-    arrive before it are not wanted anyway (the vehicle is on the ground)."""
-
-    def sink(name: str, fields: dict[str, Any], t: float) -> None:
-        w = box.get("wind")
-        if w is not None:
-            w.sink(name, fields, t)
-
-    return sink
 
 
 async def _ensure_datalink_failsafe(v: MavsdkVehicle, say: Callable[[str], None]) -> None:

@@ -48,7 +48,7 @@ OUTBOX_MAX = 64
 #: A jump back of the vehicle clock larger than this is a reboot / clock reset [s].
 CLOCK_RESET_S = 5.0
 
-Sink = Callable[[str, dict[str, Any], float], None]
+Sink = Callable[[str, dict[str, Any], float, int, int], None]
 
 
 @dataclass
@@ -186,7 +186,7 @@ class MavsdkVehicle:
             elif not t < st.t or math.isnan(st.t):
                 st.t = t
         if self.sink is not None:
-            self.sink(name, f, t)
+            self.sink(name, f, t, sysid, compid)
         if compid != self.target[1] and name not in ("NAMED_VALUE_FLOAT", "WIND_COV", "STATUSTEXT"):
             self.counters["rx_other_component"] += 1
             return
