@@ -142,6 +142,15 @@ class LinkProxy:
             self.schedule.manual = False
             self._update_cut(self.now())
 
+    def set_faults(self, direction: str, faults: Faults) -> None:
+        """Change the faults of ``"a->b"`` or ``"b->a"`` from now on (units in flight keep their fate)."""
+        if direction not in self.channels:
+            raise ValueError(f"direction {direction!r}: 'a->b' or 'b->a'")
+        faults.validate()
+        with self._lock:
+            self.faults[direction] = faults
+            self.channels[direction].f = faults
+
     def is_cut(self) -> bool:
         return self._cut_now
 
