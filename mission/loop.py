@@ -320,7 +320,8 @@ class MissionLoop:
         self.result.link_lost = True
         await self._quietly(self.v.stop_offboard())  # stop MAVSDK repeating the last setpoint
         if not await self.v.await_link(self.cfg.link_grace_s):
-            self.say(f"LINK: still down after {self.cfg.link_grace_s:g} s: the autopilot's failsafe is in charge")
+            self.say(f"LINK: still down after {self.cfg.link_grace_s:g} s: the autopilot's failsafe is in charge "
+                     f"({self._last_seen()})")  # fmt: skip
             return
         st = self.v.state
         self.say(f"LINK: telemetry is back (mode {st.mode}, {'armed' if st.armed else 'disarmed'})")
@@ -354,7 +355,7 @@ class MissionLoop:
             self.result.link_lost = True
             self.say(f"LINK: lost while landing (mode {st.mode}); waiting up to {cfg.link_grace_s:g} s for it")
             if not await self.v.await_link(cfg.link_grace_s):
-                self.say("LINK: still down: the autopilot's failsafe is in charge")
+                self.say(f"LINK: still down: the autopilot's failsafe is in charge ({self._last_seen()})")
                 return
             if st.armed:
                 got = await self.v.wait(lambda: not st.armed, cfg.land_timeout_s)
@@ -370,10 +371,18 @@ class MissionLoop:
         with contextlib.suppress(CommandError):
             await coro
 
+    def _last_seen(self) -> str:
+        st, home = self.v.state, self.result.home_ned
+        alt = "" if st.pos is None or home is None else f", {home[2] - float(st.pos[2]):.1f} m above home"
+        return f"last seen: mode {st.mode}, {'armed' if st.armed else 'disarmed'}{alt}"
+
     def _final(self) -> None:
         st, res = self.v.state, self.result
-        res.disarmed = not st.armed
-        res.landed = st.landed == LANDED_ON_GROUND or not st.armed
+        if self.v.link_lost() is None:
+            res.disarmed = not st.armed
+            res.landed = st.landed == LANDED_ON_GROUND or not st.armed
+        else:  # the mission ends with the link down: how the vehicle is now is not known (None)
+            res.disarmed = res.landed = None
         res.final_ned = None if st.pos is None else [round(float(v), 3) for v in st.pos]
         if math.isfinite(st.t) and math.isfinite(self.t_arm):
             res.mission_time_s = round(st.t - self.t_arm, 2)
