@@ -67,6 +67,11 @@ class MissionWind(Protocol):
         ...
 
 
+#: Vehicle seconds after an accepted switch to offboard within which a HEARTBEAT must show it (they come
+#: at 1 Hz, and several in a row may be lost on a bad link).
+OFFBOARD_CONFIRM_S = 5.0
+
+
 @dataclass
 class LoopConfig:
     """Timing of a mission (vehicle seconds unless named wall).
@@ -105,6 +110,7 @@ class MissionLoop:
         self._wind_info: WindInfo | None = None
         self._published = ""
         self._declared_sent = False
+        self._offboard_seen = False
 
     # ------------------------------------------------------------------ lines
     def say(self, line: str) -> None:
@@ -235,8 +241,15 @@ class MissionLoop:
             abort = self.wind.fault(t)
         if abort is None and not st.armed:
             abort = Abort("landed", f"the vehicle disarmed during the search (mode {st.mode})")
-        if abort is None and offboard and st.mode and st.mode != "OFFBOARD" and t - t_off0 > 1.5:
-            abort = Abort("offboard-lost", f"the vehicle left offboard on its own (mode {st.mode})")
+        # The mode is the last HEARTBEAT's (1 Hz): only one that showed OFFBOARD after the switch makes a
+        # later other mode a departure; heartbeats lost on a bad link are not one.
+        self._offboard_seen = offboard and (self._offboard_seen or st.mode == "OFFBOARD")
+        if abort is None and offboard and st.mode and st.mode != "OFFBOARD":
+            if self._offboard_seen:
+                abort = Abort("offboard-lost", f"the vehicle left offboard on its own (mode {st.mode})")
+            elif t - t_off0 > OFFBOARD_CONFIRM_S:
+                abort = Abort("offboard-lost", f"no heartbeat showed offboard within {OFFBOARD_CONFIRM_S:g} s of the "
+                              f"accepted switch (mode {st.mode})")  # fmt: skip
         if abort is None and (why := self.v.link_lost()) is not None:
             abort = Abort("link-lost", why)
         return abort

@@ -6,6 +6,7 @@ own counters, which must add up exactly)."""
 from __future__ import annotations
 
 import json
+import select
 import signal
 import socket
 import subprocess
@@ -247,21 +248,35 @@ def cli(*args: str) -> subprocess.Popen[str]:
                             stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
 
 
+def line_within(p: subprocess.Popen[str], timeout: float) -> str:
+    """The next stderr line of ``p``, or "" after ``timeout`` s."""
+    assert p.stderr is not None
+    return p.stderr.readline() if select.select([p.stderr], [], [], timeout)[0] else ""
+
+
 def test_cli_forwards_with_faults_and_prints_json_on_sigterm() -> None:
     a_port, gcs_port = free_port(), free_port()
     gcs = conn(f"udpin:127.0.0.1:{gcs_port}", 255)
     p = cli(f"udpin:127.0.0.1:{a_port}", f"udpout://127.0.0.1:{gcs_port}", "--loss", "0.5/0", "--seed", "4",
-            "--cut", "600:", "--json", "--progress-every", "0.2")  # fmt: skip
+            "--cut", "600:", "--drop-msg", "/HEARTBEAT", "--json", "--progress-every", "0")  # fmt: skip
     ap = None
     try:
-        assert p.stderr is not None
-        first = p.stderr.readline()
+        first = line_within(p, 30.0)
         assert first.startswith("windseek link-proxy: a udpin:127.0.0.1:") and "loss 0.5" in first, first
         ap = conn(f"udpout:127.0.0.1:{a_port}", 1)
-        statustexts(100, ap)
-        got = drain(gcs, lambda g: False, 1.0)
+        got = statustexts(100, ap, rx=gcs)
+        p.send_signal(signal.SIGUSR1)  # a cut by hand ...
+        assert line_within(p, 10.0).startswith("windseek link-proxy: cut at t = ")
+        statustexts(10, ap, "x")
+        time.sleep(0.3)
+        p.send_signal(signal.SIGUSR2)  # ... until restored
+        assert line_within(p, 10.0).startswith("windseek link-proxy: restored at t = ")
+        for _ in range(2):  # filtered out on the way back
+            gcs.mav.heartbeat_send(6, 8, 0, 0, 4)
+        time.sleep(0.3)
         p.send_signal(signal.SIGTERM)
         out, err = p.communicate(timeout=10)
+        got += drain(gcs, lambda g: False, 0.5)  # all it sent is in the socket buffer by now
     finally:
         p.kill() if p.poll() is None else None
         gcs.close()
@@ -269,10 +284,12 @@ def test_cli_forwards_with_faults_and_prints_json_on_sigterm() -> None:
             ap.close()
     assert p.returncode == 0, err
     rep = json.loads(out)
-    assert rep["stop_reason"] == "SIGTERM" and rep["seed"] == 4 and rep["cuts"] == []
+    assert rep["stop_reason"] == "SIGTERM" and rep["seed"] == 4
+    assert len(rep["cuts"]) == 1 and rep["cuts"][0]["manual"] and rep["cuts"][0]["end_s"] is not None
     c = rep["a->b"]
-    assert c["rx_units"] == 100 and c["tx_units"] == len(numbers(got)) and c["tx_units"] + c["dropped_loss"] == 100
-    assert "a->b" in err  # the periodic progress lines
+    assert c["rx_units"] == 110 and c["dropped_cut"] == 10 and c["tx_units"] + c["dropped_loss"] == 100
+    assert numbers(got, "x") == [] and len(numbers(got)) == c["tx_units"]
+    assert rep["b->a"]["dropped_filter"] == 2 and rep["faults"]["b->a"] == "drop message ids 0"
 
 
 @pytest.mark.parametrize(("argv", "says"), [
@@ -283,6 +300,7 @@ def test_cli_forwards_with_faults_and_prints_json_on_sigterm() -> None:
     (["udpin:127.0.0.1:0", "udpout:127.0.0.1:9", "--cut", "5"], "expected START:DURATION"),
     (["udpin:127.0.0.1:0", "udpout:127.0.0.1:9", "--burst", "0.1"], "expected ENTER:LEAVE"),
     (["udpin:127.0.0.1:0", "udpout:127.0.0.1:9", "--latency", "-3"], "must be in [0, 60000] ms"),
+    (["udpin:127.0.0.1:0", "udpout:127.0.0.1:9", "--drop-msg", "HEARTBEAT,NOPE"], "'NOPE': not a MAVLink message"),
 ])  # fmt: skip
 def test_bad_arguments_are_one_line_errors(argv: list[str], says: str, capsys: pytest.CaptureFixture[str]) -> None:
     from windseek.cli import main

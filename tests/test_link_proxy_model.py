@@ -168,6 +168,15 @@ def test_a_cut_drops_what_arrives_and_what_is_in_flight() -> None:
     assert ch.counters["dropped_cut"] == 11 and ch.due(100.0) == []
 
 
+def test_filtered_messages_never_get_through() -> None:
+    fs = frames()  # heartbeat (v2), statustext, local position, heartbeat (v1), heartbeat (signed)
+    ch = chan(drop_ids=frozenset({mav.MAVLINK_MSG_ID_HEARTBEAT}))
+    for i, f in enumerate(fs):
+        ch.offer(float(i), f)
+    ch.offer(9.0, fs[1] + fs[0])  # a datagram holding a heartbeat goes whole
+    assert ch.due(10.0) == [fs[1], fs[2]] and ch.counters["dropped_filter"] == 4
+
+
 def test_cut_schedule() -> None:
     s = CutSchedule([Cut(5.0, 2.0), Cut.parse("10:")])
     assert not s.active(6.0)  # not triggered yet: scheduled cuts wait for the trigger
@@ -182,7 +191,8 @@ def test_cut_schedule() -> None:
             Cut.parse(bad)
 
 
-@pytest.mark.parametrize("kw", [{"loss": 1.5}, {"duplicate": -0.1}, {"reorder": math.nan}, {"latency_s": -1.0},
+@pytest.mark.parametrize("kw", [{"drop_ids": frozenset({-1})},
+                                {"loss": 1.5}, {"duplicate": -0.1}, {"reorder": math.nan}, {"latency_s": -1.0},
                                 {"bandwidth_bps": 0.0}, {"burst": (0.5, 2.0)}, {"queue_bytes": -1}])  # fmt: skip
 def test_bad_faults_are_refused(kw: dict) -> None:
     with pytest.raises(ValueError):

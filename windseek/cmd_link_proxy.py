@@ -2,10 +2,12 @@
 
 Sits between an autopilot (or ``windseek sitl``) and a ground station, MAVSDK or a companion program
 and forwards both ways with seeded faults (:mod:`wire.proxy`): loss (independent or Gilbert-Elliott
-bursts), duplication, reordering, latency and jitter, a bandwidth limit with a bounded queue, and
-scheduled cuts. A fault option takes one value for both directions or ``AB/BA`` (a->b, then b->a).
-Counters are shown while it runs (a live table on a terminal, a line every 10 s otherwise) and
-printed at the end (``--json``: one JSON object on stdout). SIGINT / SIGTERM stop it cleanly.
+bursts), duplication, reordering, latency and jitter, a bandwidth limit with a bounded queue,
+scheduled cuts, and messages filtered out by id. A fault option takes one value for both directions
+or ``AB/BA`` (a->b, then b->a). Counters are shown while it runs (a live table on a terminal, a line
+every 10 s otherwise) and printed at the end (``--json``: one JSON object on stdout). SIGINT /
+SIGTERM stop it cleanly; SIGUSR1 cuts the link both ways until SIGUSR2 (``kill -USR1 PID``: a cut
+by hand, on top of the ``--cut`` schedule).
 
 Example: the SITL sends to the proxy's port 14600, the proxy passes on to MAVSDK on 14540::
 
@@ -78,6 +80,25 @@ def _bursts(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
     return out[0], out[-1]
 
 
+def _drop_ids(text: str) -> tuple[frozenset[int], frozenset[int]]:
+    """``NAME_OR_ID[,...]`` (both directions) or ``LIST/LIST`` (a->b, b->a; either may be empty)."""
+    from wire.dialect import mavlink as mav
+
+    parts = text.split("/")
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a list of messages or two as A->B/B->A")
+    out = []
+    for part in parts:
+        ids = set()
+        for name in filter(None, (x.strip() for x in part.split(","))):
+            mid = int(name) if name.isdigit() else getattr(mav, f"MAVLINK_MSG_ID_{name.upper()}", None)
+            if mid is None:
+                raise argparse.ArgumentTypeError(f"{name!r}: not a MAVLink message name or id (e.g. HEARTBEAT, 0)")
+            ids.add(int(mid))
+        out.append(frozenset(ids))
+    return out[0], out[-1]
+
+
 def _endpoint(text: str) -> str:
     try:
         EndpointSpec.parse(text)
@@ -125,6 +146,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="bytes per second (a 57600 baud radio carries about 5760 B/s); default unlimited")
     p.add_argument("--queue", type=_pair(_number(1.0, 1e9, " B"), "size"), default=None, metavar="BYTES[/BYTES]",
                    help="bandwidth queue limit, bytes (default: 1 s of bandwidth, at least 4096); drop-tail")
+    p.add_argument("--drop-msg", type=_drop_ids, default=(frozenset(), frozenset()), metavar="MSGS[/MSGS]",
+                   help="messages that never get through, by name or id (e.g. HEARTBEAT; HEARTBEAT/ = a->b only); "
+                   "use with --frames on UDP (a datagram holding one goes whole)")
     p.add_argument("--cut", type=_cut, action="append", default=[], metavar="START:DURATION",
                    help="cut both ways from START for DURATION seconds after the trigger; START: alone = for good "
                    "(repeatable)")
@@ -151,7 +175,8 @@ def faults_from_args(args: argparse.Namespace) -> tuple[Faults, Faults]:
             loss=args.loss[i], burst=None if args.burst is None else args.burst[i], burst_loss=args.burst_loss[i],
             duplicate=args.dup[i], reorder=args.reorder[i], latency_s=args.latency[i] / 1e3,
             jitter_s=args.jitter[i] / 1e3, bandwidth_bps=math.inf if args.bandwidth is None else args.bandwidth[i],
-            queue_bytes=0 if args.queue is None else int(args.queue[i])).validate())  # fmt: skip
+            queue_bytes=0 if args.queue is None else int(args.queue[i]),
+            drop_ids=args.drop_msg[i]).validate())  # fmt: skip
     return out[0], out[1]
 
 
@@ -192,7 +217,14 @@ def run(args: argparse.Namespace) -> int:
         reason["why"] = signal.Signals(signum).name
         stop.set()
 
+    def _cut(signum: int, frame: object) -> None:  # SIGUSR1 cuts the link, SIGUSR2 restores it
+        (proxy.cut if signum == signal.SIGUSR1 else proxy.restore)()
+        what = "cut" if signum == signal.SIGUSR1 else "restored"
+        print(f"windseek link-proxy: {what} at t = {proxy.now():.3f} s ({signal.Signals(signum).name})",
+              file=sys.stderr, flush=True)
+
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    old |= {s: signal.signal(s, _cut) for s in (signal.SIGUSR1, signal.SIGUSR2)}
     interactive = sys.stderr.isatty()
     every = args.progress_every if args.progress_every is not None else (1.0 if interactive else 10.0)
     try:

@@ -292,10 +292,12 @@ class MavsdkVehicle:
         return ok == Wait.OK
 
     # ------------------------------------------------------------------ commands
-    async def _command(self, what: str, make: Callable[[], Awaitable[Any]]) -> None:
+    async def _command(self, what: str, make: Callable[[], Awaitable[Any]],
+                       lost: tuple[str, ...] = ("TIMEOUT",)) -> None:  # fmt: skip
         """Send a command; one that timed out (no answer: lost on a bad link, after MAVSDK's own four
-        tries) is sent again, :data:`COMMAND_ATTEMPTS` in all, unless the link counts as lost. A refusal
-        is never retried. Every command here is idempotent (arm, take-off, a mode)."""
+        tries; ``lost``: the MAVSDK results that mean that) is sent again, :data:`COMMAND_ATTEMPTS` in
+        all, unless the link counts as lost. A refusal is never retried. Every command here is
+        idempotent (arm, take-off, a mode, a parameter)."""
         for attempt in range(1, COMMAND_ATTEMPTS + 1):
             try:
                 await asyncio.wait_for(make(), self.cfg.command_timeout_s)
@@ -303,7 +305,7 @@ class MavsdkVehicle:
             except TimeoutError:
                 why = f"no answer within {self.cfg.command_timeout_s:g} s"
             except Exception as e:  # noqa: BLE001 - ActionError, OffboardError: the autopilot's reason
-                if getattr(getattr(e, "result", None), "name", "") != "TIMEOUT":
+                if getattr(getattr(e, "result", None), "name", "") not in lost:
                     raise CommandError(f"{what}: {e}") from None
                 why = str(e)
             if attempt == COMMAND_ATTEMPTS or self.link_lost() is not None:
@@ -314,7 +316,9 @@ class MavsdkVehicle:
         await self._command("arm", self.action.arm)
 
     async def takeoff(self, altitude_m: float) -> None:
-        await self._command("set take-off altitude", lambda: self.action.set_takeoff_altitude(float(altitude_m)))
+        # MAVSDK sets MIS_TAKEOFF_ALT; its parameter client's timeout comes back as PARAMETER_ERROR.
+        await self._command("set take-off altitude", lambda: self.action.set_takeoff_altitude(float(altitude_m)),
+                            ("TIMEOUT", "PARAMETER_ERROR"))
         await self._command("take-off", self.action.takeoff)
 
     async def start_offboard(self) -> None:

@@ -4,7 +4,9 @@ A :class:`Channel` is one direction of a link. Every unit (a UDP datagram, or on
 offered to it at time ``now`` (seconds, any monotonic origin) goes through, in this order:
 
 1. **cut**: while the link is cut every unit is dropped (``dropped_cut``), and a cut drops what
-   was in flight too (a real link loses what it was carrying);
+   was in flight too (a real link loses what it was carrying); **filter**: a unit that holds a frame
+   whose message id is in ``drop_ids`` is dropped (``dropped_filter``; with datagram units the whole
+   datagram goes, so filter with frame units);
 2. **loss**: Bernoulli with probability ``loss``, or a Gilbert-Elliott burst model (``burst``):
    a two-state chain, good -> bad with probability ``p_enter`` per unit, bad -> good with
    ``p_leave``; in the bad state a unit is lost with ``burst_loss``, in the good state with
@@ -34,9 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wire.proxy.framing import message_ids
+
 #: Counter names of a channel, in report order.
-COUNTERS = ("rx_units", "rx_bytes", "tx_units", "tx_bytes", "dropped_loss", "dropped_cut", "dropped_queue",
-            "dropped_overflow", "dropped_no_peer", "duplicated", "reordered", "delayed")  # fmt: skip
+COUNTERS = ("rx_units", "rx_bytes", "tx_units", "tx_bytes", "dropped_loss", "dropped_cut", "dropped_filter",
+            "dropped_queue", "dropped_overflow", "dropped_no_peer", "duplicated", "reordered", "delayed")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,7 @@ class Faults:
     bandwidth_bps: bytes per second (inf: unlimited); queue_bytes: backlog limit (0: 1 s of bandwidth,
         at least 4 kB).
     max_hold_s: the longest a reordered unit waits for the next one.
+    drop_ids: MAVLink message ids that never get through (e.g. ``{0}``: every HEARTBEAT).
     """
 
     loss: float = 0.0
@@ -63,6 +68,7 @@ class Faults:
     bandwidth_bps: float = math.inf
     queue_bytes: int = 0
     max_hold_s: float = 0.2
+    drop_ids: frozenset[int] = frozenset()
 
     def validate(self) -> Faults:
         """Self, or ValueError naming the bad field."""
@@ -80,6 +86,8 @@ class Faults:
             raise ValueError(f"bandwidth {self.bandwidth_bps} B/s: must be > 0")
         if self.queue_bytes < 0:
             raise ValueError(f"queue {self.queue_bytes} B: must be >= 0")
+        if any(not 0 <= i < 1 << 24 for i in self.drop_ids):
+            raise ValueError(f"message ids {sorted(self.drop_ids)}: must be in [0, 2^24)")
         return self
 
     def queue_limit(self) -> float:
@@ -104,6 +112,8 @@ class Faults:
             parts.append(f"latency {self.latency_s * 1e3:g}+-{self.jitter_s * 1e3:g} ms")
         if math.isfinite(self.bandwidth_bps):
             parts.append(f"bandwidth {self.bandwidth_bps:g} B/s (queue {self.queue_limit():g} B)")
+        if self.drop_ids:
+            parts.append(f"drop message ids {','.join(map(str, sorted(self.drop_ids)))}")
         return ", ".join(parts) or "no faults"
 
 
@@ -139,6 +149,9 @@ class Channel:
         u_loss, u_state, u_dup, u_reorder, u_jitter = self.rng.random(5)  # always five: see the docstring
         if cut:
             c["dropped_cut"] += 1
+            return
+        if f.drop_ids and not f.drop_ids.isdisjoint(message_ids(unit)):
+            c["dropped_filter"] += 1
             return
         if f.burst is not None:
             self.bad = (u_state >= f.burst[1]) if self.bad else (u_state < f.burst[0])

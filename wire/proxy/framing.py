@@ -71,6 +71,12 @@ def split_datagram(data: bytes, splitter: FrameSplitter | None = None) -> tuple[
     return frames, sp.garbage - before
 
 
+def message_ids(data: bytes) -> list[int]:
+    """The message ids of the whole frames in ``data`` (a frame or a datagram), from their headers."""
+    frames, _ = split_datagram(data)
+    return [f[5] if f[0] == MAVLINK1_STX else int.from_bytes(f[7:10], "little") for f in frames]
+
+
 def _next_start(buf: bytearray, i: int) -> int:
     a, b = buf.find(MAVLINK1_STX, i), buf.find(MAVLINK2_STX, i)
     cands = [x for x in (a, b) if x >= 0]
