@@ -273,7 +273,7 @@ def assert_faulted_both_ways(rep: dict[str, Any], key: str, lo: float, hi: float
 
 
 # ---------------------------------------------------------------------- searches on a bad link
-LOSS_SPEED = 3.0
+LOSS_SPEED = 2.0  # the offboard-loss timeout (1 s of vehicle time) is 0.5 s of wall time: room for hiccups
 
 
 @pytest.mark.asyncio
