@@ -68,6 +68,11 @@ class MissionWind(Protocol):
         ...
 
 
+#: Vehicle seconds after an accepted switch to offboard within which a HEARTBEAT must show it (they come
+#: at 1 Hz, and several in a row may be lost on a bad link).
+OFFBOARD_CONFIRM_S = 5.0
+
+
 @dataclass
 class LoopConfig:
     """Timing of a mission (vehicle seconds unless named wall).
@@ -109,6 +114,7 @@ class MissionLoop:
         self._wind_info: WindInfo | None = None
         self._published = ""
         self._declared_sent = False
+        self._offboard_seen = False
 
     # ------------------------------------------------------------------ lines
     def say(self, line: str) -> None:
@@ -239,8 +245,15 @@ class MissionLoop:
             abort = self.wind.fault(t)
         if abort is None and not st.armed:
             abort = Abort("landed", f"the vehicle disarmed during the search (mode {st.mode})")
-        if abort is None and offboard and st.mode and st.mode != "OFFBOARD" and t - t_off0 > 1.5:
-            abort = Abort("offboard-lost", f"the vehicle left offboard on its own (mode {st.mode})")
+        # The mode is the last HEARTBEAT's (1 Hz): only one that showed OFFBOARD after the switch makes a
+        # later other mode a departure; heartbeats lost on a bad link are not one.
+        self._offboard_seen = offboard and (self._offboard_seen or st.mode == "OFFBOARD")
+        if abort is None and offboard and st.mode and st.mode != "OFFBOARD":
+            if self._offboard_seen:
+                abort = Abort("offboard-lost", f"the vehicle left offboard on its own (mode {st.mode})")
+            elif t - t_off0 > OFFBOARD_CONFIRM_S:
+                abort = Abort("offboard-lost", f"no heartbeat showed offboard within {OFFBOARD_CONFIRM_S:g} s of the "
+                              f"accepted switch (mode {st.mode})")  # fmt: skip
         if abort is None and (why := self.v.link_lost()) is not None:
             abort = Abort("link-lost", why)
         return abort
@@ -324,7 +337,8 @@ class MissionLoop:
         self.result.link_lost = True
         await self._quietly(self.v.stop_offboard())  # stop MAVSDK repeating the last setpoint
         if not await self.v.await_link(self.cfg.link_grace_s):
-            self.say(f"LINK: still down after {self.cfg.link_grace_s:g} s: the autopilot's failsafe is in charge")
+            self.say(f"LINK: still down after {self.cfg.link_grace_s:g} s: the autopilot's failsafe is in charge "
+                     f"({self._last_seen()})")  # fmt: skip
             return
         st = self.v.state
         self.say(f"LINK: telemetry is back (mode {st.mode}, {'armed' if st.armed else 'disarmed'})")
@@ -358,7 +372,7 @@ class MissionLoop:
             self.result.link_lost = True
             self.say(f"LINK: lost while landing (mode {st.mode}); waiting up to {cfg.link_grace_s:g} s for it")
             if not await self.v.await_link(cfg.link_grace_s):
-                self.say("LINK: still down: the autopilot's failsafe is in charge")
+                self.say(f"LINK: still down: the autopilot's failsafe is in charge ({self._last_seen()})")
                 return
             if st.armed:
                 got = await self.v.wait(lambda: not st.armed, cfg.land_timeout_s)
@@ -374,10 +388,18 @@ class MissionLoop:
         with contextlib.suppress(CommandError):
             await coro
 
+    def _last_seen(self) -> str:
+        st, home = self.v.state, self.result.home_ned
+        alt = "" if st.pos is None or home is None else f", {home[2] - float(st.pos[2]):.1f} m above home"
+        return f"last seen: mode {st.mode}, {'armed' if st.armed else 'disarmed'}{alt}"
+
     def _final(self) -> None:
         st, res = self.v.state, self.result
-        res.disarmed = not st.armed
-        res.landed = st.landed == LANDED_ON_GROUND or not st.armed
+        if self.v.link_lost() is None:
+            res.disarmed = not st.armed
+            res.landed = st.landed == LANDED_ON_GROUND or not st.armed
+        else:  # the mission ends with the link down: how the vehicle is now is not known (None)
+            res.disarmed = res.landed = None
         res.final_ned = None if st.pos is None else [round(float(v), 3) for v in st.pos]
         if math.isfinite(st.t) and math.isfinite(self.t_arm):
             res.mission_time_s = round(st.t - self.t_arm, 2)

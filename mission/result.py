@@ -27,7 +27,8 @@ class MissionResult:
     time_s: vehicle seconds from arming to the declaration (NaN without one).
     path_m: horizontal path from the start of the search to the declaration (or the end), m.
     cause: ``declared`` or an abort cause of :data:`mission.safety.CAUSES`; reasons: the lines said.
-    landed / disarmed: final state, read from the vehicle; link_lost: the link was lost at some point.
+    landed / disarmed: final state, read from the vehicle (None: not known, the mission ended with the link
+        down; the reasons say what was last seen); link_lost: the link was lost at some point.
     final_ned / home_ned: last and home positions (m, NED).
     verifications: the strategy's verification sweeps (``t_start_s``, ``duration_s``, ``outcome``,
         ``candidate_ne``), see ``mission/README.md``.
@@ -49,8 +50,8 @@ class MissionResult:
     path_m: float = 0.0
     cause: str = ""
     reasons: list[str] = field(default_factory=list)
-    landed: bool = False
-    disarmed: bool = False
+    landed: bool | None = False
+    disarmed: bool | None = False
     link_lost: bool = False
     final_ned: list[float] | None = None
     home_ned: list[float] | None = None

@@ -224,8 +224,10 @@ class EstimatorWatch:
     """
 
     #: Rejections that are not faults: inputs that arrive before the filter has its first
-    #: attitude and rotor speeds.
-    BENIGN = frozenset({"imu:not_ready", "gnss:not_ready", "gnss:stale"})
+    #: attitude and rotor speeds, and samples a link duplicated or reordered (the filter already has
+    #: them or is past them; a stream that only repeats itself ends in "no IMU sample" below).
+    BENIGN = frozenset({"imu:not_ready", "gnss:not_ready", "gnss:stale", "imu:older_than_filter",
+                        *(f"{s}:duplicate_or_out_of_order" for s in ("imu", "attitude", "rates", "rotors", "gnss"))})
 
     def __init__(self, max_sigma_m_s: float = 5.0, burst: int = 50, window_s: float = 2.0,
                  input_timeout_s: float = 2.0) -> None:  # fmt: skip

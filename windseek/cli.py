@@ -24,6 +24,8 @@ COMMANDS = [
     # issue 7: the live estimator process and the three-process demo
     "windseek.cmd_estimator",
     "windseek.cmd_demo",
+    # issue 14.7: a faulty link between two MAVLink endpoints
+    "windseek.cmd_link_proxy",
 ]
 
 

@@ -8,4 +8,5 @@ pieces live here so none of them imports another's internals:
   the declared source as NAMED_VALUE_FLOAT, component ids).
 - ``px4_modes``: PX4's custom-mode word (HEARTBEAT.custom_mode, DO_SET_MODE) and mode names.
 - ``jsonsafe``: strict-JSON cleaning of result dictionaries (NaN -> null).
+- ``proxy``: a seeded link-fault proxy between two MAVLink endpoints (``windseek link-proxy``).
 """

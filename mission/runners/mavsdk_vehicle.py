@@ -45,6 +45,8 @@ MAV_AUTOPILOT_INVALID = 8
 MAV_STATE_EMERGENCY = 6
 #: Mission status queued for the wire at most (the oldest are dropped, counted).
 OUTBOX_MAX = 64
+#: Sends of a command that timed out, in all (MAVSDK tries four times within about 2 s itself).
+COMMAND_ATTEMPTS = 3
 #: A jump back of the vehicle clock larger than this is a reboot / clock reset [s].
 CLOCK_RESET_S = 5.0
 
@@ -290,32 +292,46 @@ class MavsdkVehicle:
         return ok == Wait.OK
 
     # ------------------------------------------------------------------ commands
-    async def _command(self, what: str, coro: Awaitable[Any]) -> None:
-        try:
-            await asyncio.wait_for(coro, self.cfg.command_timeout_s)
-        except TimeoutError:
-            raise CommandError(f"{what}: no answer within {self.cfg.command_timeout_s:g} s") from None
-        except Exception as e:  # noqa: BLE001 - ActionError, OffboardError: the autopilot's reason
-            raise CommandError(f"{what}: {e}") from None
+    async def _command(self, what: str, make: Callable[[], Awaitable[Any]],
+                       lost: tuple[str, ...] = ("TIMEOUT",)) -> None:  # fmt: skip
+        """Send a command; one that timed out (no answer: lost on a bad link, after MAVSDK's own four
+        tries; ``lost``: the MAVSDK results that mean that) is sent again, :data:`COMMAND_ATTEMPTS` in
+        all, unless the link counts as lost. A refusal is never retried. Every command here is
+        idempotent (arm, take-off, a mode, a parameter)."""
+        for attempt in range(1, COMMAND_ATTEMPTS + 1):
+            try:
+                await asyncio.wait_for(make(), self.cfg.command_timeout_s)
+                return
+            except TimeoutError:
+                why = f"no answer within {self.cfg.command_timeout_s:g} s"
+            except Exception as e:  # noqa: BLE001 - ActionError, OffboardError: the autopilot's reason
+                if getattr(getattr(e, "result", None), "name", "") not in lost:
+                    raise CommandError(f"{what}: {e}") from None
+                why = str(e)
+            if attempt == COMMAND_ATTEMPTS or self.link_lost() is not None:
+                raise CommandError(f"{what}: {why}" + (f" ({attempt} attempts)" if attempt > 1 else ""))
+            self.counters["command_retries"] += 1
 
     async def arm(self) -> None:
-        await self._command("arm", self.action.arm())
+        await self._command("arm", self.action.arm)
 
     async def takeoff(self, altitude_m: float) -> None:
-        await self._command("set take-off altitude", self.action.set_takeoff_altitude(float(altitude_m)))
-        await self._command("take-off", self.action.takeoff())
+        # MAVSDK sets MIS_TAKEOFF_ALT; its parameter client's timeout comes back as PARAMETER_ERROR.
+        await self._command("set take-off altitude", lambda: self.action.set_takeoff_altitude(float(altitude_m)),
+                            ("TIMEOUT", "PARAMETER_ERROR"))
+        await self._command("take-off", self.action.takeoff)
 
     async def start_offboard(self) -> None:
-        await self._command("offboard", self.offb.start())
+        await self._command("offboard", self.offb.start)
 
     async def stop_offboard(self) -> None:
-        await self._command("stop offboard", self.offb.stop())
+        await self._command("stop offboard", self.offb.stop)
 
     async def hold(self) -> None:
-        await self._command("hold", self.action.hold())
+        await self._command("hold", self.action.hold)
 
     async def land(self) -> None:
-        await self._command("land", self.action.land())
+        await self._command("land", self.action.land)
 
     def send_setpoint(self, pos: np.ndarray | None, vel: np.ndarray | None, yaw: float | None) -> None:
         """Through the synchronous plugin: the call only queues the message in MAVSDK (no await), so

@@ -166,7 +166,10 @@ class MissionProtocol:
                 self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype)
             return
         if msg.seq < tr.next_seq:
-            self._request(tr)  # a duplicate: ask again for the one we need
+            # A duplicate (the link doubled it, or the sender resent it): ignored, as PX4 does. Asking
+            # again here would answer every duplicate with a request, and those with more duplicates:
+            # MAVSDK counts each repeated request as a retry and gives up (seen through wire.proxy).
+            self.ep.counters["mission_duplicates"] += 1
             return
         if msg.seq > tr.next_seq:
             self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
