@@ -77,24 +77,27 @@ class Endpoint:
         targets = self.links if link is None else (link,)
         for lk in targets:
             if isinstance(lk.transport, UdpTransport) and len(buf) > 1400:
-                self._write_chunked(lk, buf)
+                _write_chunked(lk.transport.write, buf)
             else:
                 lk.transport.write(buf)
         self.counters["tx_messages"] += len(msgs)
 
-    def _write_chunked(self, lk: Link, msgs_buf: bytes) -> None:
-        # UDP: keep datagrams under a typical MTU, splitting only at frame boundaries.
-        start = 0
-        i = 0
-        n = len(msgs_buf)
-        while i < n:
-            frame_len = _frame_len(msgs_buf, i)
-            if i + frame_len - start > 1400 and i > start:
-                lk.transport.write(msgs_buf[start:i])
-                start = i
-            i += frame_len
-        if start < n:
-            lk.transport.write(msgs_buf[start:n])
+    def reply(self, msg: object, link: Link, to: tuple[str, int] | None = None) -> None:
+        """Send an answer to the peer that asked: on ``link``, and on a UDP link only to ``to``
+        (default: the sender of the datagram being handled), not to every peer of the link."""
+        self.reply_many([msg], link, to)
+
+    def reply_many(self, msgs: list, link: Link, to: tuple[str, int] | None = None) -> None:
+        if not msgs:
+            return
+        dest = to if to is not None else link.rx_source
+        t = link.transport
+        if not isinstance(t, UdpTransport) or dest is None:
+            self.send_many(msgs, link)
+            return
+        buf = b"".join(self.encode(m) for m in msgs)
+        _write_chunked(lambda b: t.send_to(b, dest), buf)
+        self.counters["tx_messages"] += len(msgs)
 
     # ------------------------------------------------------------------ input
     def poll(self, timeout_s: float) -> int:
@@ -181,6 +184,21 @@ class Endpoint:
         for lk in self.links:
             with contextlib.suppress(OSError):
                 lk.transport.close()
+
+
+def _write_chunked(write: Callable[[bytes], None], msgs_buf: bytes) -> None:
+    """UDP: keep datagrams under a typical MTU, splitting only at frame boundaries."""
+    start = 0
+    i = 0
+    n = len(msgs_buf)
+    while i < n:
+        frame_len = _frame_len(msgs_buf, i)
+        if i + frame_len - start > 1400 and i > start:
+            write(msgs_buf[start:i])
+            start = i
+        i += frame_len
+    if start < n:
+        write(msgs_buf[start:n])
 
 
 def _frame_len(buf: bytes, i: int) -> int:

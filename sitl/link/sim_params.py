@@ -16,7 +16,7 @@ import numpy as np
 from sitl.autopilot.builtin import BuiltinAutopilot
 from sitl.autopilot.controller import GAIN_NAMES
 from sitl.link.geofence import Geofence
-from sitl.link.params import Param
+from sitl.link.params import INT32, Param
 from sitl.world.world import World
 
 FLIGHT_PARAMS = (  # PX4 name, FlightConfig field, range
@@ -91,8 +91,8 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
     cfg = autopilot.fc.config
     for name, attr, lo, hi in FLIGHT_PARAMS:
         params.append(Param(name, lambda a=attr: getattr(cfg, a), lambda v, a=attr: setattr(cfg, a, float(v)), lo, hi))
-    params.append(Param("GF_ACTION", lambda: float(geofence.action),
-                        lambda v: setattr(geofence, "action", int(v)), 0, 4))  # fmt: skip
+    params.append(Param("GF_ACTION", lambda: geofence.action,
+                        lambda v: setattr(geofence, "action", int(v)), 0, 4, INT32))  # fmt: skip
     params.append(Param("SIM_SPEED", speed, set_speed, 0.05, 1000.0))
     for i, axis in enumerate("NED"):
         params.append(Param(f"SIM_WIND_{axis}", lambda i=i: knobs.wind_mean()[i],
@@ -101,5 +101,5 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
     for name, group, attr, hi in NOISE_PARAMS:
         params.append(Param(name, lambda g=group, a=attr: knobs.noise(g, a),
                             lambda v, g=group, a=attr: knobs.set_noise(g, a, v), 0.0, hi))  # fmt: skip
-    params.append(Param("MAV_SYS_ID", lambda: 1.0, None, 1, 1))
+    params.append(Param("MAV_SYS_ID", lambda: 1, None, 1, 1, INT32))
     return params

@@ -119,6 +119,14 @@ class UdpTransport(Transport):
             except OSError:
                 self.stats.tx_errors += 1
 
+    def send_to(self, data: bytes, peer: tuple[str, int]) -> None:
+        """Send to one peer only (an answer to the peer that asked)."""
+        try:
+            self.sock.sendto(data, peer)
+            self.stats.tx_bytes += len(data)
+        except OSError:
+            self.stats.tx_errors += 1
+
     def close(self) -> None:
         self.sock.close()
 
