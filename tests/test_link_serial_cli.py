@@ -94,7 +94,8 @@ async def test_cli_serial_pty_mavsdk_arm_takeoff_and_sigint(tmp_path: Path) -> N
         proc = _sitl(tmp_path, "--no-udp", "--serial", f"{dev_sitl}:115200")
         try:
             async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
-                drone = await autopilot(sdk, f"serial://{dev_gcs}:115200", 15.0)
+                # The SITL process needs ~10 s to start on a loaded 2-core machine (imports, numba cache).
+                drone = await autopilot(sdk, f"serial://{dev_gcs}:115200", 40.0)
                 assert drone is not None, "no autopilot on the serial link"
                 tel, action = TelemetryAsync(drone), ActionAsync(drone)
                 await first(tel.subscribe_health_all_ok(), bool, 10.0, "health all ok")

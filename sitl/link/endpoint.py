@@ -14,6 +14,7 @@ import logging
 import select
 from collections import Counter
 from collections.abc import Callable
+from typing import Any
 
 from sitl.link.transports import Transport, UdpTransport
 from wire.dialect import mavlink
@@ -55,14 +56,14 @@ class Endpoint:
         self.rx_hooks: list[Callable[[object, Link], None]] = []
 
     # ------------------------------------------------------------------ output
-    def encode(self, msg: object) -> bytes:
+    def encode(self, msg: Any) -> bytes:
         """Pack with our identity and the next sequence number."""
         enc = self._encoder
         buf = msg.pack(enc)
         enc.seq = (enc.seq + 1) % 256
         return buf
 
-    def send(self, msg: object, link: Link | None = None) -> None:
+    def send(self, msg: Any, link: Link | None = None) -> None:
         """Send to one link, or to every link when ``link`` is None."""
         buf = self.encode(msg)
         targets = self.links if link is None else (link,)
@@ -82,7 +83,7 @@ class Endpoint:
                 lk.transport.write(buf)
         self.counters["tx_messages"] += len(msgs)
 
-    def reply(self, msg: object, link: Link, to: tuple[str, int] | None = None) -> None:
+    def reply(self, msg: Any, link: Link, to: tuple[str, int] | None = None) -> None:
         """Send an answer to the peer that asked: on ``link``, and on a UDP link only to ``to``
         (default: the sender of the datagram being handled), not to every peer of the link."""
         self.reply_many([msg], link, to)
@@ -209,7 +210,7 @@ def _frame_len(buf: bytes, i: int) -> int:
     return 8 + buf[i + 1]
 
 
-def targets_us(msg: object) -> bool:
+def targets_us(msg: Any) -> bool:
     """True if a message addressed with target_system/target_component is for us (0 = broadcast)."""
     ts = getattr(msg, "target_system", 0)
     tc = getattr(msg, "target_component", 0)

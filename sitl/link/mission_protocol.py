@@ -8,7 +8,8 @@ Set current: MISSION_SET_CURRENT. A rejected upload leaves the previous plan in 
 
 Mission items: NAV_WAYPOINT (param1 hold s, param2 acceptance radius m, param4 yaw deg),
 NAV_TAKEOFF (z), NAV_LAND (x, y or 0/0 = here), NAV_LOITER_TIME (param1 s), NAV_RETURN_TO_LAUNCH,
-DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is).
+DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is), DO_LAND_START
+(a marker, as on PX4: the command DO_LAND_START continues the mission from it).
 Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
 (above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
 EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
@@ -52,6 +53,7 @@ NAV_KINDS = {
     mav.MAV_CMD_DO_CHANGE_SPEED: ItemKind.CHANGE_SPEED,
     mav.MAV_CMD_NAV_DELAY: ItemKind.LOITER_TIME,  # MAVSDK's loiter_time_s: wait where the vehicle is
 }
+MAV_CMD_DO_LAND_START = 189
 FENCE_CMDS = {
     mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
     mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
@@ -100,7 +102,7 @@ class MissionProtocol:
             self.ep.handlers[name] = getattr(self, "on_" + name.lower())
 
     # ------------------------------------------------------------------ helpers
-    def _ack(self, link: Link, msg: object, code: int, mission_type: int) -> None:
+    def _ack(self, link: Link, msg: Any, code: int, mission_type: int) -> None:
         self.ep.send(
             mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
         )
@@ -129,7 +131,7 @@ class MissionProtocol:
         self._request(tr)
 
     # ------------------------------------------------------------------ upload
-    def on_mission_count(self, msg: object, link: Link) -> None:
+    def on_mission_count(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -147,14 +149,14 @@ class MissionProtocol:
         self.transfer = Transfer(link, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
         self._request(self.transfer)
 
-    def on_mission_item(self, msg: object, link: Link) -> None:
+    def on_mission_item(self, msg: Any, link: Link) -> None:
         # Legacy float item: same fields, lat/lon in degrees.
         self._on_item(msg, link, as_int=False)
 
-    def on_mission_item_int(self, msg: object, link: Link) -> None:
+    def on_mission_item_int(self, msg: Any, link: Link) -> None:
         self._on_item(msg, link, as_int=True)
 
-    def _on_item(self, msg: object, link: Link, as_int: bool) -> None:
+    def _on_item(self, msg: Any, link: Link, as_int: bool) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -210,6 +212,8 @@ class MissionProtocol:
             elif cmd != mav.MAV_CMD_NAV_FENCE_RETURN_POINT and not (math.isfinite(it["param1"]) and it["param1"] >= 3):
                 raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, "polygon needs >= 3 vertices")
             return
+        if cmd == MAV_CMD_DO_LAND_START:
+            return  # a marker; its position fields are informative only (PX4 ignores them too)
         kind = NAV_KINDS.get(cmd)
         if kind is None:
             raise ItemError(mav.MAV_MISSION_UNSUPPORTED, f"command {cmd} not supported")
@@ -260,7 +264,17 @@ class MissionProtocol:
             ned[2] = home.alt_m - it["z"]
         return ned
 
+    def land_start_index(self) -> int | None:
+        """Index of the mission's DO_LAND_START item (the first one), None without one."""
+        for i, it in enumerate(self.plans[MISSION]):
+            if it["command"] == MAV_CMD_DO_LAND_START:
+                return i
+        return None
+
     def _to_item(self, it: dict) -> MissionItem:
+        if it["command"] == MAV_CMD_DO_LAND_START:
+            # A no-op item keeps the autopilot's indices equal to the plan's: a speed change to "no change".
+            return MissionItem(ItemKind.CHANGE_SPEED, speed_m_s=math.nan)
         kind = NAV_KINDS[it["command"]]
         if kind == ItemKind.CHANGE_SPEED:
             s = it["param2"]
@@ -303,7 +317,7 @@ class MissionProtocol:
         return fence
 
     # ------------------------------------------------------------------ download, clear, current
-    def on_mission_request_list(self, msg: object, link: Link) -> None:
+    def on_mission_request_list(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -314,7 +328,7 @@ class MissionProtocol:
             mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
                                             mtype), link)  # fmt: skip
 
-    def on_mission_request_int(self, msg: object, link: Link) -> None:
+    def on_mission_request_int(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -339,7 +353,7 @@ class MissionProtocol:
 
     on_mission_request = on_mission_request_int
 
-    def on_mission_clear_all(self, msg: object, link: Link) -> None:
+    def on_mission_clear_all(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -355,7 +369,7 @@ class MissionProtocol:
             return
         self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype_ack)
 
-    def on_mission_set_current(self, msg: object, link: Link) -> None:
+    def on_mission_set_current(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         fc = self.ap.fc
@@ -368,11 +382,11 @@ class MissionProtocol:
             fc.mission_index = msg.seq
         self.ep.send_many(self.mission_current())
 
-    def on_mission_ack(self, msg: object, link: Link) -> None:
+    def on_mission_ack(self, msg: Any, link: Link) -> None:
         pass  # end of a download: nothing to release, downloads are stateless here
 
 
-def _normalise(msg: object, as_int: bool) -> dict:
+def _normalise(msg: Any, as_int: bool) -> dict:
     scale = 1e-7 if as_int else 1.0
     return {
         "frame": int(msg.frame), "command": int(msg.command), "autocontinue": int(msg.autocontinue),

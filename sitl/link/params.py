@@ -186,5 +186,5 @@ def _name(msg: Any) -> str:
     return str(raw).rstrip("\x00")
 
 
-def _for_us(msg: object) -> bool:
+def _for_us(msg: Any) -> bool:
     return getattr(msg, "target_system", 0) in (0, 1) and getattr(msg, "target_component", 0) in (0, 1)

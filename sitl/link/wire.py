@@ -79,7 +79,7 @@ class TlogWriter:
         ep = link.endpoint
         encode = ep.encode
 
-        def tapped(msg: object) -> bytes:
+        def tapped(msg: Any) -> bytes:
             buf = encode(msg)
             self.write(buf)
             return buf
