@@ -39,6 +39,7 @@ import numpy as np
 from estimator.ground_gate import GroundGate, withheld
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
+from wire.urls import pymavlink_url  # in wire/: the mission's signing bridge uses it too
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
@@ -56,24 +57,6 @@ PREFERENCE = {"imu": ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU"),
               "attitude": ("ATTITUDE_QUATERNION", "ATTITUDE"),
               "velocity": ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"),
               "rotors": ("ESC_STATUS", "RAW_RPM")}  # fmt: skip
-
-
-def pymavlink_url(url: str) -> tuple[str, int]:
-    """A MAVSDK-style URL to a pymavlink device string and baud rate (pymavlink forms pass through)."""
-    for pre, rep in (("udpin://", "udpin:"), ("udpout://", "udpout:"), ("udp://", "udpin:"),
-                     ("tcpout://", "tcp:"), ("tcp://", "tcp:"), ("tcpin://", "tcpin:")):  # fmt: skip
-        if url.startswith(pre):
-            return rep + url[len(pre):], 115200
-    if url.startswith("serial://"):
-        dev, sep, baud = url[len("serial://"):].rpartition(":")
-        return (dev, int(baud)) if sep and baud.isdigit() else (url[len("serial://"):], 57600)
-    if url.startswith("/dev/") or url.startswith("COM"):
-        dev, sep, baud = url.rpartition(":")
-        return (dev, int(baud)) if sep and baud.isdigit() else (url, 57600)
-    if url.split(":", 1)[0] in ("udpin", "udpout", "udpbcast", "tcp", "tcpin"):
-        return url, 115200
-    raise ValueError(f"--connect {url!r}: expected udpin://HOST:PORT, udpout://HOST:PORT, tcpout://HOST:PORT, "
-                     "tcpin://HOST:PORT or serial:///dev/DEVICE:BAUD")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -107,6 +90,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="stop when nothing arrived for S wall seconds (0 = never; default 10)")
     p.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
                    help="wall seconds to wait for the autopilot's first HEARTBEAT (default 30)")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters (default: "
+                   "$WINDSEEK_SIGNING_KEY if set); sign what we send, drop unsigned or wrongly signed frames")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     p.add_argument("--progress-every", type=float, default=None, metavar="S",
                    help="wall seconds between progress lines on stderr (default: a live line on a terminal, "
@@ -303,6 +289,9 @@ def run(args: argparse.Namespace) -> int:
     # The windseek dialect (common + ESC_INFO/ESC_STATUS) for every connection made below.
     mavutil.mavlink = dialect
     mavutil.current_dialect = "windseek"
+    from wire import signing
+
+    key = signing.load_key(getattr(args, "signing_key", None))  # a bad key: one-line error, nothing opened
     device, baud = pymavlink_url(args.connect)
     live = LiveEstimator(args)
     interactive = sys.stderr.isatty()
@@ -321,6 +310,9 @@ def run(args: argparse.Namespace) -> int:
     conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
                                       source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
     conn.mav.robust_parsing = True
+    if key is not None:
+        signing.configure_connection(conn, key)
+        say("MAVLink 2 signing on: unsigned or wrongly signed frames are dropped")
     try:
         return _loop(conn, live, args, say, every, interactive)
     finally:
@@ -340,6 +332,8 @@ def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, ev
         if live.stop:
             return 130
         msg = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+        if msg is not None and not _authentic(conn, msg):
+            msg = None  # with signing, an unsigned HEARTBEAT (accepted by PX4's allowlist) is no autopilot
         if msg is not None and msg.autopilot != MAV_AUTOPILOT_INVALID:
             target = (msg.get_srcSystem(), msg.get_srcComponent())
         elif time.monotonic() - wall0 > args.connect_timeout:
@@ -352,7 +346,7 @@ def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, ev
     t_end = time.monotonic() + 1.0
     while time.monotonic() < t_end and not live.stop:
         msg = conn.recv_match(blocking=True, timeout=0.1)
-        if msg is not None and msg.get_type() != "BAD_DATA":
+        if msg is not None and msg.get_type() != "BAD_DATA" and _authentic(conn, msg):
             live.handle(msg)
     _request_rates(conn, live, target, args.request_rates, say)
     last_rx = last_hb = last_line = time.monotonic()
@@ -377,7 +371,7 @@ def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, ev
                 live.reason = f"link quiet for {args.link_timeout:g} s"
                 break
             continue
-        if msg.get_type() == "BAD_DATA":
+        if msg.get_type() == "BAD_DATA" or not _authentic(conn, msg):
             continue
         if msg.get_srcSystem() == conn.mav.srcSystem and msg.get_srcComponent() == ESTIMATOR_COMPONENT:
             continue  # our own frames, echoed by a forwarder
@@ -392,11 +386,22 @@ def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, ev
     if interactive and every > 0:
         sys.stderr.write("\r\x1b[K")
     s = live.summary()
+    if conn.mav.signing.secret_key is not None:
+        from wire import signing
+
+        s["signing"] = signing.counts(conn.mav)  # counts only, never the key
     if args.json:
         print(json.dumps(s, allow_nan=False), flush=True)
     else:
         say(f"stopped ({live.reason or 'done'}): {live.line()}")
     return 0
+
+
+def _authentic(conn: Any, msg: Any) -> bool:
+    """With signing on, only correctly signed frames are used (the allowlisted unsigned ones are not)."""
+    from wire import signing
+
+    return signing.is_authentic(msg, conn.mav.signing.secret_key is not None)
 
 
 def _heartbeat(conn: Any) -> None:

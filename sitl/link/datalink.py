@@ -49,6 +49,7 @@ class DataLinkFailsafe:
         self.last_heartbeat_t = math.nan
         self.lost = False
         self.losses = 0
+        self.ep = ep
         ep.rx_hooks.append(self.on_rx)
         # Both INT32 as in PX4's commander_params.c; COM_DL_LOSS_T in whole seconds (PX4's minimum is 5,
         # 1 here so tests can lose a link quickly).
@@ -59,6 +60,8 @@ class DataLinkFailsafe:
     def on_rx(self, msg: Any, link: Link) -> None:
         if msg.get_type() != "HEARTBEAT" or msg.get_srcSystem() == SYSTEM_ID:
             return
+        if not self.ep.authentic(msg):
+            return  # with signing on, an unsigned (allowlisted) HEARTBEAT proves no ground link
         self.last_heartbeat_t = self.clock()
         if self.lost:
             self.lost = False

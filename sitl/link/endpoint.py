@@ -1,10 +1,18 @@
 """The MAVLink endpoint: frames in and out over several transports, with per-link parsers.
 
 Every transport is a *link* with its own MAVLink parser (a byte stream's parse state must not
-mix with another's). Incoming messages are dispatched by type to handlers; replies go back on
-the link a request came from, streams go to every link. Anything that cannot be parsed (bad
-CRC, truncated or unknown frames, garbage) is counted in :attr:`Endpoint.counters` and
-dropped; a handler that raises is counted too and never stops the endpoint.
+mix with another's). Incoming messages are dispatched by type to handlers; answers to a request go
+back to the peer that asked (:meth:`Endpoint.reply`: on its link and, on UDP, to its address only),
+streams go to every link. Anything that cannot be parsed (bad CRC, truncated or unknown frames,
+garbage) is counted in :attr:`Endpoint.counters` and dropped; a handler that raises is counted too
+and never stops the endpoint.
+
+With a signing key (:mod:`wire.signing`) every frame sent is signed and every frame received must
+be signed with the key: an unsigned or wrongly signed frame (bad signature, replayed or stale time
+stamp) is dropped before any handler, hook, forwarder or log sees it, and counted
+(``rx_unauthenticated``), except PX4's unsigned allowlist. SETUP_SIGNING is never acted on,
+forwarded or logged (it carries a key). A UDP sender is learned as a peer only from a datagram
+with a valid (authenticated, when signing) frame.
 """
 
 from __future__ import annotations
@@ -17,6 +25,7 @@ from collections.abc import Callable
 from typing import Any
 
 from sitl.link.transports import Transport, UdpTransport
+from wire import signing
 from wire.dialect import mavlink
 
 log = logging.getLogger(__name__)
@@ -35,9 +44,9 @@ class Link:
         self.index = index
         self.parser = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
         self.parser.robust_parsing = True
-        self.peers_seen: set[tuple[int, int]] = set()
-        #: Sender address of the datagram being parsed (UDP; None on byte streams): for forwarding.
+        #: Sender address of the datagram being parsed (UDP; None on byte streams): for replies and forwarding.
         self.rx_source: tuple[str, int] | None = None
+        self.rx_valid = False  # the datagram being parsed held a valid (authenticated) frame
 
     @property
     def name(self) -> str:
@@ -47,13 +56,31 @@ class Link:
 class Endpoint:
     """MAVLink system 1, component 1 on a set of transports."""
 
-    def __init__(self, transports: list[Transport]) -> None:
+    def __init__(self, transports: list[Transport], signing_key: signing.SigningKey | None = None) -> None:
         self.links = [Link(t, i) for i, t in enumerate(transports)]
         self._encoder = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
+        self.signing_on = signing_key is not None
+        if signing_key is not None:
+            signing.configure(self._encoder, signing_key, link_id=0)
+            for lk in self.links:
+                signing.configure(lk.parser, signing_key, link_id=0, sign_outgoing=False)
         self.handlers: dict[str, Handler] = {}
         self.counters: Counter[str] = Counter()
         self._fd_link: dict[int, Link] = {}
         self.rx_hooks: list[Callable[[object, Link], None]] = []
+
+    def signing_counts(self) -> dict[str, int]:
+        """The verifiers' counts over every link (empty without signing)."""
+        if not self.signing_on:
+            return {}
+        total: Counter[str] = Counter()
+        for lk in self.links:
+            total.update(signing.counts(lk.parser))
+        return dict(total)
+
+    def authentic(self, msg: object) -> bool:
+        """True if ``msg`` came from a key holder (always true without signing)."""
+        return signing.is_authentic(msg, self.signing_on)
 
     # ------------------------------------------------------------------ output
     def encode(self, msg: Any) -> bytes:
@@ -120,10 +147,14 @@ class Endpoint:
             lk = self._fd_link[fd]
             data = lk.transport.read(fd)
             if isinstance(data, list):  # datagrams
+                t = lk.transport
                 for dgram in data:
                     lk.rx_source = getattr(dgram, "addr", None)
+                    lk.rx_valid = False
                     handled += self.feed(lk, dgram)
                     self._end_of_datagram(lk)
+                    if lk.rx_valid and lk.rx_source is not None and isinstance(t, UdpTransport):
+                        t.learn(lk.rx_source)
             elif data:
                 handled += self.feed(lk, data)
         return handled
@@ -152,7 +183,10 @@ class Endpoint:
         for msg in msgs:
             mtype = msg.get_type()
             if mtype == "BAD_DATA":
-                reason = getattr(msg, "reason", "")
+                reason = str(getattr(msg, "reason", ""))
+                if "Invalid signature" in reason:
+                    self.counters["rx_unauthenticated"] += 1  # unsigned or wrongly signed: dropped
+                    continue
                 self.counters["rx_bad"] += 1
                 if "unknown MAVLink message ID" in reason:
                     self.counters["rx_unknown_id"] += 1
@@ -165,8 +199,15 @@ class Endpoint:
                 continue
             if msg.get_srcSystem() == SYSTEM_ID and msg.get_srcComponent() == COMPONENT_ID:
                 continue  # our own frames reflected back (e.g. a serial loop)
+            if msg.get_msgId() == signing.SETUP_SIGNING_ID:
+                # It carries a key: never acted on (the key is the operator's), forwarded or logged.
+                self.counters["setup_signing_ignored"] += 1
+                continue
             self.counters["rx_messages"] += 1
-            lk.peers_seen.add((msg.get_srcSystem(), msg.get_srcComponent()))
+            if self.authentic(msg):
+                lk.rx_valid = True
+            else:
+                self.counters["rx_unsigned_allowed"] += 1
             for hook in self.rx_hooks:
                 hook(msg, lk)
             handler = self.handlers.get(mtype)

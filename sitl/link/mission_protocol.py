@@ -74,6 +74,7 @@ class ItemError(ValueError):
 @dataclass
 class Transfer:
     link: Link
+    addr: tuple[str, int] | None  # the uploader's UDP address (None on byte streams): re-requests go there
     mission_type: int
     count: int
     sysid: int
@@ -95,7 +96,8 @@ class MissionProtocol:
         self.mission_current = mission_current
         self.plans: dict[int, list] = {MISSION: [], FENCE: []}  # the raw MISSION_ITEM_INT messages
         self.transfer: Transfer | None = None
-        self._last_done: tuple[int, int, int] | None = None  # (link index, type, count) of last upload
+        # (link index, sender address, type, count) of the last upload, to re-ACK a lost final ACK.
+        self._last_done: tuple[int, Any, int, int] | None = None
         for name in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
                      "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
                      "MISSION_ACK"):  # fmt: skip
@@ -103,15 +105,16 @@ class MissionProtocol:
 
     # ------------------------------------------------------------------ helpers
     def _ack(self, link: Link, msg: Any, code: int, mission_type: int) -> None:
-        self.ep.send(
+        self.ep.reply(
             mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
         )
         if code != mav.MAV_MISSION_ACCEPTED:
             self.ep.counters["mission_errors"] += 1
 
     def _request(self, tr: Transfer) -> None:
-        self.ep.send(
-            mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link
+        self.ep.reply(
+            mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link,
+            tr.addr,
         )
         tr.deadline = time.monotonic() + REQUEST_TIMEOUT_S
 
@@ -121,9 +124,9 @@ class MissionProtocol:
         if tr is None or time.monotonic() < tr.deadline:
             return
         if tr.retries >= REQUEST_RETRIES:
-            self.ep.send(
+            self.ep.reply(
                 mav.MAVLink_mission_ack_message(tr.sysid, tr.compid, mav.MAV_MISSION_OPERATION_CANCELLED,
-                                              tr.mission_type), tr.link)  # fmt: skip
+                                              tr.mission_type), tr.link, tr.addr)  # fmt: skip
             self.ep.counters["mission_timeouts"] += 1
             self.transfer = None
             return
@@ -146,7 +149,7 @@ class MissionProtocol:
             self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
             return
         # A new MISSION_COUNT restarts any transfer in progress (a retried count is a restart too).
-        self.transfer = Transfer(link, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
+        self.transfer = Transfer(link, link.rx_source, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
         self._request(self.transfer)
 
     def on_mission_item(self, msg: Any, link: Link) -> None:
@@ -161,8 +164,8 @@ class MissionProtocol:
             return
         mtype = getattr(msg, "mission_type", MISSION)
         tr = self.transfer
-        if tr is None or tr.link is not link or tr.mission_type != mtype:
-            if self._last_done == (link.index, mtype, msg.seq + 1):
+        if tr is None or tr.link is not link or tr.addr != link.rx_source or tr.mission_type != mtype:
+            if self._last_done == (link.index, link.rx_source, mtype, msg.seq + 1):
                 self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)  # our final ACK was lost
             else:
                 self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype)
@@ -195,7 +198,7 @@ class MissionProtocol:
             self.transfer = None
             return
         self.transfer = None
-        self._last_done = (link.index, mtype, tr.count)
+        self._last_done = (link.index, link.rx_source, mtype, tr.count)
         self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
 
     def _validate(self, it: dict, mtype: int) -> None:
@@ -324,7 +327,7 @@ class MissionProtocol:
         if mtype not in (MISSION, FENCE):
             self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
             return
-        self.ep.send(
+        self.ep.reply(
             mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
                                             mtype), link)  # fmt: skip
 
@@ -341,7 +344,7 @@ class MissionProtocol:
             return
         it = plan[msg.seq]
         fc = self.ap.fc
-        self.ep.send(
+        self.ep.reply(
             mav.MAVLink_mission_item_int_message(
                 msg.get_srcSystem(), msg.get_srcComponent(), msg.seq, it["frame"], it["command"],
                 int(mtype == MISSION and msg.seq == fc.mission_index), it["autocontinue"],

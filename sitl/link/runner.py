@@ -33,6 +33,7 @@ from sitl.link.telemetry import Telemetry
 from sitl.link.transports import Transport
 from sitl.simulation import Simulation
 from wire.dialect import mavlink as mav
+from wire.signing import SigningKey
 
 log = logging.getLogger(__name__)
 
@@ -48,14 +49,19 @@ class SitlLink:
         transports: the byte pipes (UDP, TCP server, serial), all served at once.
         speed: simulation seconds per wall-clock second (> 0).
         true_wind_hz: rate of the simulation-only TRUEW* debug values (0 = off).
+        signing_key: MAVLink 2 signing on every link (:mod:`wire.signing`); None: no signing.
+        allow_sim_params: the simulation knobs (``SIM_*``) may be set over MAVLink; otherwise a
+            PARAM_SET of one is refused (PARAM_ERROR PERMISSION_DENIED) and the value stays.
     """
 
     def __init__(self, sim: Simulation, transports: list[Transport], speed: float = 1.0,
-                 true_wind_hz: float = 5.0) -> None:  # fmt: skip
+                 true_wind_hz: float = 5.0, signing_key: SigningKey | None = None,
+                 allow_sim_params: bool = False) -> None:  # fmt: skip
         if not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"speed {speed}: must be a finite number > 0")
         self.sim = sim
-        self.endpoint = Endpoint(transports)
+        self.allow_sim_params = bool(allow_sim_params)
+        self.endpoint = Endpoint(transports, signing_key)
         self.telemetry = Telemetry(sim)
         self.streams = StreamScheduler(self.telemetry, true_wind_hz)
         self.geofence = Geofence()
@@ -71,7 +77,7 @@ class SitlLink:
         self.offboard = OffboardHandler(ep, self.port)
         self.knobs = WorldKnobs(sim.world)
         self.params = ParamTable(sitl_parameters(sim.autopilot, self.geofence, self.knobs,
-                                                 lambda: self.speed, self.set_speed))  # fmt: skip
+                                                 lambda: self.speed, self.set_speed, self._sim_lock))  # fmt: skip
         self.param_protocol = ParamProtocol(ep, self.params)
         self.ftp = FtpServer(ep)  # answers MAVProxy's / QGC's FTP at once, as PX4 (read-only, empty tree)
         # NAV_DLL_ACT: land when the ground link's heartbeats stop.
@@ -91,6 +97,9 @@ class SitlLink:
         self._last_index = sim.fc.mission_index
         self.chunks = 0
         self.lag_max_s = 0.0
+
+    def _sim_lock(self) -> str | None:
+        return None if self.allow_sim_params else "simulation knobs need --allow-sim-params"
 
     @property
     def counters(self) -> dict[str, int]:
@@ -115,13 +124,13 @@ class SitlLink:
     # ------------------------------------------------------------------ small handlers
     def on_timesync(self, msg: Any, link: Link) -> None:
         if msg.tc1 == 0:  # a request: answer with our (simulation) clock
-            self.endpoint.send(mav.MAVLink_timesync_message(int(self.sim.t * 1e9), msg.ts1), link)
+            self.endpoint.reply(mav.MAVLink_timesync_message(int(self.sim.t * 1e9), msg.ts1), link)
 
     def on_heartbeat(self, msg: Any, link: Link) -> None:
         """A ground station's first HEARTBEAT gets AUTOPILOT_VERSION unasked. PX4 sends it blindly when a
         serial link starts; clients that ask only once per heartbeat (dronekit) would otherwise read their
         version as None when a short parameter download ends before the answer."""
-        if getattr(msg, "type", None) != mav.MAV_TYPE_GCS:
+        if getattr(msg, "type", None) != mav.MAV_TYPE_GCS or not self.endpoint.authentic(msg):
             return
         key = (link.index, link.rx_source, msg.get_srcSystem(), msg.get_srcComponent())
         if key in self._greeted:
@@ -134,7 +143,7 @@ class SitlLink:
 
     def on_ping(self, msg: Any, link: Link) -> None:
         if msg.target_system == 0 and msg.target_component == 0:
-            self.endpoint.send(
+            self.endpoint.reply(
                 mav.MAVLink_ping_message(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()), link
             )
         elif not targets_us(msg):

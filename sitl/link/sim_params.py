@@ -82,8 +82,12 @@ class WorldKnobs:
 
 
 def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: WorldKnobs,
-                    speed: Callable[[], float], set_speed: Callable[[float], None]) -> list[Param]:  # fmt: skip
-    """The SITL's parameter list, in its fixed order (indices are stable across runs)."""
+                    speed: Callable[[], float], set_speed: Callable[[float], None],
+                    sim_lock: Callable[[], str | None] | None = None) -> list[Param]:  # fmt: skip
+    """The SITL's parameter list, in its fixed order (indices are stable across runs).
+
+    ``sim_lock``: why the simulation knobs (``SIM_*``) may not be set over MAVLink now (None: they may);
+    it is the ``locked`` of every SIM_* parameter (the SITL's own API is not locked)."""
     params: list[Param] = []
     for g in GAIN_NAMES:
         params.append(Param(f"CTL_{g.upper()}"[:16], lambda g=g: autopilot.gain(g),
@@ -102,4 +106,7 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
         params.append(Param(name, lambda g=group, a=attr: knobs.noise(g, a),
                             lambda v, g=group, a=attr: knobs.set_noise(g, a, v), 0.0, hi))  # fmt: skip
     params.append(Param("MAV_SYS_ID", lambda: 1, None, 1, 1, INT32))
+    for p in params:
+        if p.name.startswith("SIM_"):
+            p.locked = sim_lock
     return params
