@@ -124,7 +124,8 @@ def test_cli_udp_peers_and_sigterm(tmp_path: Path) -> None:
     peer = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=200, dialect="common")
     proc = _sitl(tmp_path, "--udp", f"127.0.0.1:{port}", "--true-wind-hz", "0", "--hil-decimation", "5")
     try:
-        hb = peer.recv_match(type="HEARTBEAT", blocking=True, timeout=15)
+        # The SITL process needs ~10 s to start on a loaded 2-core machine (imports, numba cache).
+        hb = peer.recv_match(type="HEARTBEAT", blocking=True, timeout=40)
         assert hb is not None, "no HEARTBEAT on the configured UDP peer"
         assert hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1
         assert hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR and hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4
