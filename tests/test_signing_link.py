@@ -280,3 +280,23 @@ def test_cli_key_never_in_tlog_summary_or_output(tmp_path: Path) -> None:
 def _sitl_port(conn: Any) -> int:
     """The SITL's UDP port as a udpin peer learned it (the source of the frames it received)."""
     return int(next(iter(conn.clients))[1])
+
+
+def test_tcp_answers_go_to_the_client_that_asked() -> None:
+    from sitl.link import TcpServerTransport
+
+    tcp_port = free_port(socket.SOCK_STREAM)
+    with running([TcpServerTransport(tcp_port, "127.0.0.1")]) as link:
+        for mid in QUIET:
+            link.streams.set_interval(mid, -1, 0.0)
+        a, b = (_peer(f"tcp:127.0.0.1:{tcp_port}", sysid=s) for s in (201, 202))
+        for conn in (a, b):
+            assert _recv(conn, "HEARTBEAT", timeout=10) is not None  # streams go to every client
+        wait_until(lambda: len(link.endpoint.links[0].transport.clients) == 2, 5.0, "two clients")
+        _drain(a)
+        _drain(b)
+        a.mav.param_request_read_send(1, 1, b"GF_ACTION", -1)
+        assert _recv(a, "PARAM_VALUE", lambda m: m.param_id == "GF_ACTION") is not None
+        assert _recv(b, "PARAM_VALUE", timeout=1.0) is None
+        a.close()
+        b.close()

@@ -24,7 +24,7 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
-from sitl.link.transports import Transport, UdpTransport
+from sitl.link.transports import TcpServerTransport, Transport, UdpTransport
 from wire import signing
 from wire.dialect import mavlink
 
@@ -120,11 +120,14 @@ class Endpoint:
             return
         dest = to if to is not None else link.rx_source
         t = link.transport
-        if not isinstance(t, UdpTransport) or dest is None:
+        if isinstance(t, UdpTransport) and dest is not None:
+            buf = b"".join(self.encode(m) for m in msgs)
+            _write_chunked(lambda b: t.send_to(b, dest), buf)
+        elif isinstance(t, TcpServerTransport) and dest is not None:
+            t.send_to(b"".join(self.encode(m) for m in msgs), int(dest[1]))
+        else:
             self.send_many(msgs, link)
             return
-        buf = b"".join(self.encode(m) for m in msgs)
-        _write_chunked(lambda b: t.send_to(b, dest), buf)
         self.counters["tx_messages"] += len(msgs)
 
     # ------------------------------------------------------------------ input
@@ -156,6 +159,8 @@ class Endpoint:
                     if lk.rx_valid and lk.rx_source is not None and isinstance(t, UdpTransport):
                         t.learn(lk.rx_source)
             elif data:
+                # A TCP client is its own peer: answers go to it only (None for serial: one peer).
+                lk.rx_source = ("tcp", fd) if isinstance(lk.transport, TcpServerTransport) else None
                 handled += self.feed(lk, data)
         return handled
 

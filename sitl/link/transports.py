@@ -226,6 +226,21 @@ class TcpServerTransport(Transport):
         self.stats.rx_bytes += len(data)
         return data
 
+    def send_to(self, data: bytes, fd: int) -> None:
+        """Send to one client only (an answer to the client that asked); gone clients are skipped."""
+        conn = self.clients.get(fd)
+        if conn is None:
+            return
+        try:
+            n = conn.send(data)
+            self.stats.tx_bytes += n
+            if n < len(data):
+                self.stats.tx_errors += 1
+        except (BlockingIOError, InterruptedError):
+            self.stats.tx_errors += 1
+        except OSError:
+            self._drop(fd)
+
     def _drop(self, fd: int) -> None:
         conn = self.clients.pop(fd, None)
         if conn is not None:
