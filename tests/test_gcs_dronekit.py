@@ -1,8 +1,8 @@
 """dronekit 2.9.2 (the last release; ArduPilot-minded) against the SITL, as against a PX4 (issue 17).
 
-- ``vehicle.version`` right after ``connect``: the SITL greets a new ground station with
-  AUTOPILOT_VERSION (PX4 sends it unasked on serial links), so dronekit's version is set even when
-  the short parameter download ends before dronekit's once-per-heartbeat request is answered.
+- ``vehicle.version`` after ``connect``: the SITL greets a new ground station with AUTOPILOT_VERSION
+  (PX4 sends it unasked on serial links), so dronekit's version is set although the short parameter
+  download ends before dronekit's once-per-heartbeat request would be answered.
 - Parameters: REAL32 ones read and set as usual. dronekit sends every PARAM_SET as REAL32 and reads
   values by cast, so an INT32 parameter reads as a denormal float and its set is refused with
   PARAM_ERROR TYPE_MISMATCH, exactly as against PX4.
@@ -41,7 +41,9 @@ def test_dronekit_version_params_takeoff() -> None:
         v: Any = dronekit.connect(f"udpin:127.0.0.1:{port}", heartbeat_timeout=30)
         try:
             v.add_message_listener("STATUSTEXT", lambda _v, _n, m: texts.append(str(m.text)))
-            # Set at once, without waiting for a HEARTBEAT-triggered request.
+            # Set without any request from the user: the SITL answers dronekit's first HEARTBEAT (on a loaded
+            # machine the answer can land a moment after connect() returns, hence the short bound).
+            wait_until(lambda: v.version.major is not None, 5.0, "AUTOPILOT_VERSION")
             assert str(v.version) == "PX4Copter-1.15.0", v.version
             assert v.capabilities.mission_int and v.capabilities.ftp
             # REAL32: read, set, read back.
