@@ -53,7 +53,7 @@ class Peer:
 @pytest.fixture
 def sitl() -> Iterator[tuple[SitlLink, Peer]]:
     port = free_port()
-    with running([udp_to(port)]) as link:
+    with running([udp_to(port)], allow_sim_params=True) as link:
         # A pure-Python peer parses ~1500 messages/s at speed 4 slowly enough for its socket
         # buffer to overflow; these tests do not need the high-rate raw streams.
         for mid in (M.MAVLINK_MSG_ID_HIL_SENSOR, M.MAVLINK_MSG_ID_HIGHRES_IMU, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,

@@ -97,7 +97,8 @@ async def test_cli_serial_pty_mavsdk_arm_takeoff_and_sigint(tmp_path: Path) -> N
         proc = _sitl(tmp_path, "--no-udp", "--serial", f"{dev_sitl}:115200", "--hil-decimation", "10")
         try:
             async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as sdk:
-                drone = await autopilot(sdk, f"serial://{dev_gcs}:115200", 15.0)
+                # The SITL process needs ~10 s to start on a loaded 2-core machine (imports, numba cache).
+                drone = await autopilot(sdk, f"serial://{dev_gcs}:115200", 40.0)
                 assert drone is not None, "no autopilot on the serial link"
                 tel, action = TelemetryAsync(drone), ActionAsync(drone)
                 await first(tel.subscribe_health_all_ok(), bool, 10.0, "health all ok")
@@ -126,7 +127,8 @@ def test_cli_udp_peers_and_sigterm(tmp_path: Path) -> None:
     peer = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=200, dialect="common")
     proc = _sitl(tmp_path, "--udp", f"127.0.0.1:{port}", "--true-wind-hz", "0", "--hil-decimation", "5")
     try:
-        hb = peer.recv_match(type="HEARTBEAT", blocking=True, timeout=15)
+        # The SITL process needs ~10 s to start on a loaded 2-core machine (imports, numba cache).
+        hb = peer.recv_match(type="HEARTBEAT", blocking=True, timeout=40)
         assert hb is not None, "no HEARTBEAT on the configured UDP peer"
         assert hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1
         assert hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR and hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4

@@ -39,6 +39,7 @@ from estimator.mavlink_adapter import wind_cov_message
 from estimator.mavlink_decode import PREFERENCE
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
+from wire.urls import pymavlink_url  # in wire/: the mission's signing bridge uses it too
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
@@ -50,24 +51,6 @@ WANTED: dict[str, tuple[tuple[str, float], ...]] = {
     "velocity": (("LOCAL_POSITION_NED", 30.0),),
     "rotors": (("ESC_STATUS", 50.0), ("ACTUATOR_OUTPUT_STATUS", 50.0)),
 }
-
-
-def pymavlink_url(url: str) -> tuple[str, int]:
-    """A MAVSDK-style URL to a pymavlink device string and baud rate (pymavlink forms pass through)."""
-    for pre, rep in (("udpin://", "udpin:"), ("udpout://", "udpout:"), ("udp://", "udpin:"),
-                     ("tcpout://", "tcp:"), ("tcp://", "tcp:"), ("tcpin://", "tcpin:")):  # fmt: skip
-        if url.startswith(pre):
-            return rep + url[len(pre):], 115200
-    if url.startswith("serial://"):
-        dev, sep, baud = url[len("serial://"):].rpartition(":")
-        return (dev, int(baud)) if sep and baud.isdigit() else (url[len("serial://"):], 57600)
-    if url.startswith("/dev/") or url.startswith("COM"):
-        dev, sep, baud = url.rpartition(":")
-        return (dev, int(baud)) if sep and baud.isdigit() else (url, 57600)
-    if url.split(":", 1)[0] in ("udpin", "udpout", "udpbcast", "tcp", "tcpin"):
-        return url, 115200
-    raise ValueError(f"--connect {url!r}: expected udpin://HOST:PORT, udpout://HOST:PORT, tcpout://HOST:PORT, "
-                     "tcpin://HOST:PORT or serial:///dev/DEVICE:BAUD")
 
 
 def _range(text: str) -> tuple[float, float]:
@@ -122,6 +105,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="stop when nothing arrived for S wall seconds (0 = never; default 10)")
     p.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
                    help="wall seconds to wait for the autopilot's first HEARTBEAT (default 30)")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters (default: "
+                   "$WINDSEEK_SIGNING_KEY if set); sign what we send, drop unsigned or wrongly signed frames")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     p.add_argument("--progress-every", type=float, default=None, metavar="S",
                    help="wall seconds between progress lines on stderr (default: a live line on a terminal, "
@@ -223,6 +209,9 @@ def run(args: argparse.Namespace) -> int:
     # The windseek dialect (common + ESC_INFO/ESC_STATUS) for every connection made below.
     mavutil.mavlink = dialect
     mavutil.current_dialect = "windseek"
+    from wire import signing
+
+    key = signing.load_key(getattr(args, "signing_key", None))  # a bad key: one-line error, nothing opened
     device, baud = pymavlink_url(args.connect)
     interactive = sys.stderr.isatty()
     every = args.progress_every if args.progress_every is not None else (0.5 if interactive else 10.0)
@@ -243,6 +232,9 @@ def run(args: argparse.Namespace) -> int:
         conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
                                           source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
         conn.mav.robust_parsing = True
+        if key is not None:
+            signing.configure_connection(conn, key)
+            say("MAVLink 2 signing on: unsigned or wrongly signed frames are dropped")
         try:
             return _loop(conn, core, args, say, every, interactive, stop)
         finally:
@@ -285,6 +277,8 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
                 reason = f"link quiet for {args.link_timeout:g} s"
                 break
             continue
+        if not _authentic(conn, msg):
+            continue  # with signing, unsigned frames (even PX4's allowlisted ones) are not used
         if msg.get_srcSystem() == conn.mav.srcSystem and msg.get_srcComponent() == ESTIMATOR_COMPONENT:
             continue  # our own frames, echoed by a forwarder
         last_rx = time.monotonic()
@@ -305,6 +299,10 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
     if interactive and every > 0:
         sys.stderr.write("\r\x1b[K")
     s = summary(core, pub, stop[0] if stop else reason or "done")
+    if conn.mav.signing.secret_key is not None:
+        from wire import signing
+
+        s["signing"] = signing.counts(conn.mav)  # counts only, never the key
     if args.json:
         print(json.dumps(s, allow_nan=False), flush=True)
     else:
@@ -312,6 +310,13 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
         if core.model_note:
             say(core.model_note)
     return 130 if stop and core.target is None else 0
+
+
+def _authentic(conn: Any, msg: Any) -> bool:
+    """With signing on, only correctly signed frames are used (the allowlisted unsigned ones are not)."""
+    from wire import signing
+
+    return signing.is_authentic(msg, conn.mav.signing.secret_key is not None)
 
 
 def _heartbeat(conn: Any) -> None:

@@ -53,6 +53,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(scales the wall-clock waits)")
     p.add_argument("--seed", type=int, default=0, help="seed of the strategy's randomized choices")
     p.add_argument("--vehicle", default="nasa_quad", help="vehicle file of the estimator's force model")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters (default: "
+                   "$WINDSEEK_SIGNING_KEY if set); MAVSDK has no signing, so the link runs through an "
+                   "in-process signing bridge")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 
@@ -60,6 +64,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from mission.runners.mavsdk_runner import MissionConfig, run_mission
     from mission.strategies.params import load_params
+    from wire.signing import load_key
+
+    key = load_key(args.signing_key)  # a bad key: one clear line, before any connection
 
     limits = replace(SafetyLimits(), min_altitude_m=args.min_altitude, max_altitude_m=args.max_altitude,
                      time_limit_s=args.time_limit, link_timeout_s=args.link_timeout)  # fmt: skip
@@ -79,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = MissionConfig(
         connect=args.connect, strategy=args.strategy, params=load_params(args.strategy, args.params),
         altitude_m=args.altitude, wind=args.wind, limits=limits, vehicle=args.vehicle, seed=args.seed,
-        speed_hint=args.speed_hint, say=say,
+        speed_hint=args.speed_hint, say=say, signing_key=key,
     )  # fmt: skip
     res = asyncio.run(run_mission(cfg))
     if args.json:

@@ -19,6 +19,7 @@ from sitl.link.transports import Transport, parse_host_port, parse_serial
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
 from wire.dialect import mavlink
+from wire.signing import load_key
 
 DEFAULT_UDP_PEERS = ["127.0.0.1:14540", "127.0.0.1:14550"]
 
@@ -75,6 +76,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="rate of the simulation-only TRUEWN/TRUEWE/TRUEWD values (0 = off)")
     p.add_argument("--hil-decimation", type=int, default=1, metavar="N",
                    help="send HIL_SENSOR for every N-th IMU sample (default 1: the IMU rate)")
+    p.add_argument("--signing-key", metavar="FILE", default=None,
+                   help="MAVLink 2 signing on every link: FILE holds the 32-byte key as 64 hex characters "
+                   "(default: $WINDSEEK_SIGNING_KEY if set); unsigned or wrongly signed frames are dropped")
+    p.add_argument("--allow-sim-params", action="store_true",
+                   help="let MAVLink PARAM_SET change the simulation knobs SIM_* (refused by default)")
     # ---- wire attachments (sitl.link.wire): logs, forwarding, truth summary
     g = p.add_argument_group("logs, forwarding and truth (see sitl/link/wire.py)")
     g.add_argument("--tlog", metavar="PATH", help="write every MAVLink frame sent and received to a .tlog "
@@ -94,6 +100,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def build(args: argparse.Namespace) -> SitlLink:
     """Scenario, simulation, transports and link from the parsed arguments; every argument is
     checked before anything slow (the simulation's first build compiles its kernels) or open."""
+    key = load_key(getattr(args, "signing_key", None))  # a bad key fails here, before any socket opens
     peers = [parse_host_port(x) for x in (args.udp or DEFAULT_UDP_PEERS)] if not args.no_udp else []
     bind = parse_host_port(args.udp_bind, "0.0.0.0")
     serial = parse_serial(args.serial) if args.serial else None
@@ -111,7 +118,8 @@ def build(args: argparse.Namespace) -> SitlLink:
             transports.append(TcpServerTransport(args.tcp))
         if serial is not None:
             transports.append(SerialTransport(*serial))
-        link = SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz)
+        link = SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz, signing_key=key,
+                        allow_sim_params=getattr(args, "allow_sim_params", False))
         imu_hz = sc.sensors.imu.rate_hz
         link.streams.set_interval(mavlink.MAVLINK_MSG_ID_HIL_SENSOR, 1e6 * args.hil_decimation / imu_hz, 0.0)
         return link
@@ -159,6 +167,8 @@ def run(args: argparse.Namespace) -> int:
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
     names = ", ".join(lk.name for lk in link.endpoint.links)
     print(f"windseek sitl: {link.sim.scenario.name} at speed {link.speed:g} on {names}", flush=True)
+    if link.endpoint.signing_on:
+        print("windseek sitl: MAVLink 2 signing on: unsigned or wrongly signed frames are dropped", flush=True)
     try:
         link.serve()
     finally:
@@ -167,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
         for s, h in old.items():
             signal.signal(s, h)
     c = link.counters
+    rejected = f", {c['rx_unauthenticated']} unauthenticated dropped" if link.endpoint.signing_on else ""
     print(f"windseek sitl: stopped at t = {link.sim.t:.2f} s; rx {c['rx_messages']} msgs "
-          f"({c['rx_bad']} bad), tx {c['tx_messages']} msgs", file=sys.stderr, flush=True)
+          f"({c['rx_bad']} bad{rejected}), tx {c['tx_messages']} msgs", file=sys.stderr, flush=True)
     return 0

@@ -8,5 +8,9 @@ pieces live here so none of them imports another's internals:
   the declared source as NAMED_VALUE_FLOAT, component ids).
 - ``px4_modes``: PX4's custom-mode word (HEARTBEAT.custom_mode, DO_SET_MODE) and mode names.
 - ``jsonsafe``: strict-JSON cleaning of result dictionaries (NaN -> null).
+- ``param_codec``: PX4's INT32/REAL32 parameter values in PARAM_VALUE/PARAM_SET (bytewise INT32).
+- ``signing``: the MAVLink 2 signing key (``--signing-key`` / ``WINDSEEK_SIGNING_KEY``) and verification.
+- ``signing_bridge``: signing for MAVSDK, which has none (its ``raw://`` connection through pymavlink).
+- ``urls``: MAVSDK-style connection URLs to pymavlink's.
 - ``proxy``: a seeded link-fault proxy between two MAVLink endpoints (``windseek link-proxy``).
 """

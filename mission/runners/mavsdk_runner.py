@@ -30,6 +30,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +87,7 @@ class MissionConfig:
     link_grace_s: float = 30.0
     speed_hint: float = 1.0
     say: Callable[[str], None] = print
+    signing_key: Any = None  # wire.signing.SigningKey: MAVLink 2 signing on the link (None: off)
 
 
 async def run_mission(cfg: MissionConfig) -> MissionResult:
@@ -99,7 +101,7 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
         params = replace(params, altitude_m=float(cfg.altitude_m))
     wall0 = time.monotonic()
     link = LinkConfig(cfg.connect, cfg.connect_timeout_s, cfg.health_timeout_s, cfg.limits.link_timeout_s,
-                      cfg.speed_hint)  # fmt: skip
+                      cfg.speed_hint, signing_key=cfg.signing_key)  # fmt: skip
     estimated: EstimatedLiveWind | None = None
     extra: tuple[str, ...] = ()
     sink = None

@@ -58,7 +58,8 @@ class LinkConfig:
     """connect: MAVSDK URL; connect_timeout_s / health_timeout_s: wall seconds to wait for a heartbeat /
     for health; link_timeout_s: wall seconds without telemetry that count as a loss; speed_hint: the
     simulator's speed factor (wall-clock waits are divided by it); command_timeout_s: wall seconds
-    a command may take."""
+    a command may take; signing_key: a ``wire.signing.SigningKey`` to sign and verify the link with
+    (MAVSDK has no signing: the link then runs through ``wire.signing_bridge``), None for none."""
 
     connect: str
     connect_timeout_s: float = 20.0
@@ -66,6 +67,7 @@ class LinkConfig:
     link_timeout_s: float = 3.0
     speed_hint: float = 1.0
     command_timeout_s: float = 5.0
+    signing_key: Any = None
 
 
 class MavsdkVehicle:
@@ -117,6 +119,11 @@ class MavsdkVehicle:
                 plugin.unsubscribe_message(handle)
         self._subs = []
         await asyncio.sleep(0)
+        bridge = getattr(self, "_bridge", None)
+        if bridge is not None:  # stopped before MAVSDK is destroyed: it must not feed a dead core
+            bridge.close()
+            self._bridge = None
+            self.say(f"mission: signing: {bridge.stats()}")
         if self._sdk is not None:
             await self._sdk.__aexit__(None, None, None)
             self._sdk = None
@@ -129,7 +136,14 @@ class MavsdkVehicle:
         from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
         cfg = self.cfg
-        await self._sdk.add_any_connection(cfg.connect)
+        if cfg.signing_key is not None:
+            from wire.signing_bridge import SigningBridge
+
+            self._bridge = SigningBridge(self._sdk._mavsdk, cfg.connect, cfg.signing_key).start()
+            await self._sdk.add_any_connection("raw://")
+            self.say("mission: MAVLink 2 signing on (through windseek's signing bridge: MAVSDK has no signing)")
+        else:
+            await self._sdk.add_any_connection(cfg.connect)
         drone = await find_autopilot(self._sdk, cfg.connect_timeout_s)
         if drone is None:
             raise MissionError(f"no autopilot heartbeat on {cfg.connect} within {cfg.connect_timeout_s:g} s")

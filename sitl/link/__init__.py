@@ -10,7 +10,8 @@ Modules, one job each:
 - ``commands``: COMMAND_LONG / COMMAND_INT with COMMAND_ACK.
 - ``mission_protocol``: mission and geofence transfers; ``geofence``: the fence check.
 - ``offboard``: SET_POSITION_TARGET_* and SET_ATTITUDE_TARGET.
-- ``params``: the parameter protocol over gains, limits and simulation knobs.
+- ``params``: the parameter protocol over gains, limits and simulation knobs (PX4's INT32/REAL32).
+- ``ftp``: MAVLink FTP answered as PX4 (read-only in-memory tree).
 - ``runner``: :class:`SitlLink`, the pacing loop (lockstep simulation paced to wall clock * speed).
 
 Identity: system 1, component 1, MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_PX4, PX4 custom modes.

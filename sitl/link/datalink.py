@@ -25,7 +25,7 @@ from typing import Any
 
 from sitl.autopilot.flight_modes import FlightController
 from sitl.link.endpoint import SYSTEM_ID, Endpoint, Link
-from sitl.link.params import Param, ParamTable
+from sitl.link.params import INT32, Param, ParamTable
 
 DLL_DISABLED, DLL_HOLD, DLL_RTL, DLL_LAND = 0, 1, 2, 3
 
@@ -49,14 +49,19 @@ class DataLinkFailsafe:
         self.last_heartbeat_t = math.nan
         self.lost = False
         self.losses = 0
+        self.ep = ep
         ep.rx_hooks.append(self.on_rx)
-        table.add(Param("NAV_DLL_ACT", lambda: float(self.action), lambda v: setattr(self, "action", int(v)), 0, 3))
-        table.add(Param("COM_DL_LOSS_T", lambda: self.timeout_s, lambda v: setattr(self, "timeout_s", float(v)),
-                        0.5, 300))  # fmt: skip
+        # Both INT32 as in PX4's commander_params.c; COM_DL_LOSS_T in whole seconds (PX4's minimum is 5,
+        # 1 here so tests can lose a link quickly).
+        table.add(Param("NAV_DLL_ACT", lambda: self.action, lambda v: setattr(self, "action", int(v)), 0, 3, INT32))
+        table.add(Param("COM_DL_LOSS_T", lambda: int(round(self.timeout_s)),
+                        lambda v: setattr(self, "timeout_s", float(v)), 1, 300, INT32))  # fmt: skip
 
     def on_rx(self, msg: Any, link: Link) -> None:
         if msg.get_type() != "HEARTBEAT" or msg.get_srcSystem() == SYSTEM_ID:
             return
+        if not self.ep.authentic(msg):
+            return  # with signing on, an unsigned (allowlisted) HEARTBEAT proves no ground link
         self.last_heartbeat_t = self.clock()
         if self.lost:
             self.lost = False

@@ -1,10 +1,18 @@
 """The MAVLink endpoint: frames in and out over several transports, with per-link parsers.
 
 Every transport is a *link* with its own MAVLink parser (a byte stream's parse state must not
-mix with another's). Incoming messages are dispatched by type to handlers; replies go back on
-the link a request came from, streams go to every link. Anything that cannot be parsed (bad
-CRC, truncated or unknown frames, garbage) is counted in :attr:`Endpoint.counters` and
-dropped; a handler that raises is counted too and never stops the endpoint.
+mix with another's). Incoming messages are dispatched by type to handlers; answers to a request go
+back to the peer that asked (:meth:`Endpoint.reply`: on its link and, on UDP, to its address only),
+streams go to every link. Anything that cannot be parsed (bad CRC, truncated or unknown frames,
+garbage) is counted in :attr:`Endpoint.counters` and dropped; a handler that raises is counted too
+and never stops the endpoint.
+
+With a signing key (:mod:`wire.signing`) every frame sent is signed and every frame received must
+be signed with the key: an unsigned or wrongly signed frame (bad signature, replayed or stale time
+stamp) is dropped before any handler, hook, forwarder or log sees it, and counted
+(``rx_unauthenticated``), except PX4's unsigned allowlist. SETUP_SIGNING is never acted on,
+forwarded or logged (it carries a key). A UDP sender is learned as a peer only from a datagram
+with a valid (authenticated, when signing) frame.
 """
 
 from __future__ import annotations
@@ -14,8 +22,10 @@ import logging
 import select
 from collections import Counter
 from collections.abc import Callable
+from typing import Any
 
-from sitl.link.transports import Transport, UdpTransport
+from sitl.link.transports import TcpServerTransport, Transport, UdpTransport
+from wire import signing
 from wire.dialect import mavlink
 
 log = logging.getLogger(__name__)
@@ -34,9 +44,9 @@ class Link:
         self.index = index
         self.parser = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
         self.parser.robust_parsing = True
-        self.peers_seen: set[tuple[int, int]] = set()
-        #: Sender address of the datagram being parsed (UDP; None on byte streams): for forwarding.
+        #: Sender address of the datagram being parsed (UDP; None on byte streams): for replies and forwarding.
         self.rx_source: tuple[str, int] | None = None
+        self.rx_valid = False  # the datagram being parsed held a valid (authenticated) frame
 
     @property
     def name(self) -> str:
@@ -46,23 +56,41 @@ class Link:
 class Endpoint:
     """MAVLink system 1, component 1 on a set of transports."""
 
-    def __init__(self, transports: list[Transport]) -> None:
+    def __init__(self, transports: list[Transport], signing_key: signing.SigningKey | None = None) -> None:
         self.links = [Link(t, i) for i, t in enumerate(transports)]
         self._encoder = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
+        self.signing_on = signing_key is not None
+        if signing_key is not None:
+            signing.configure(self._encoder, signing_key, link_id=0)
+            for lk in self.links:
+                signing.configure(lk.parser, signing_key, link_id=0, sign_outgoing=False)
         self.handlers: dict[str, Handler] = {}
         self.counters: Counter[str] = Counter()
         self._fd_link: dict[int, Link] = {}
         self.rx_hooks: list[Callable[[object, Link], None]] = []
 
+    def signing_counts(self) -> dict[str, int]:
+        """The verifiers' counts over every link (empty without signing)."""
+        if not self.signing_on:
+            return {}
+        total: Counter[str] = Counter()
+        for lk in self.links:
+            total.update(signing.counts(lk.parser))
+        return dict(total)
+
+    def authentic(self, msg: object) -> bool:
+        """True if ``msg`` came from a key holder (always true without signing)."""
+        return signing.is_authentic(msg, self.signing_on)
+
     # ------------------------------------------------------------------ output
-    def encode(self, msg: object) -> bytes:
+    def encode(self, msg: Any) -> bytes:
         """Pack with our identity and the next sequence number."""
         enc = self._encoder
         buf = msg.pack(enc)
         enc.seq = (enc.seq + 1) % 256
         return buf
 
-    def send(self, msg: object, link: Link | None = None) -> None:
+    def send(self, msg: Any, link: Link | None = None) -> None:
         """Send to one link, or to every link when ``link`` is None."""
         buf = self.encode(msg)
         targets = self.links if link is None else (link,)
@@ -77,24 +105,30 @@ class Endpoint:
         targets = self.links if link is None else (link,)
         for lk in targets:
             if isinstance(lk.transport, UdpTransport) and len(buf) > 1400:
-                self._write_chunked(lk, buf)
+                _write_chunked(lk.transport.write, buf)
             else:
                 lk.transport.write(buf)
         self.counters["tx_messages"] += len(msgs)
 
-    def _write_chunked(self, lk: Link, msgs_buf: bytes) -> None:
-        # UDP: keep datagrams under a typical MTU, splitting only at frame boundaries.
-        start = 0
-        i = 0
-        n = len(msgs_buf)
-        while i < n:
-            frame_len = _frame_len(msgs_buf, i)
-            if i + frame_len - start > 1400 and i > start:
-                lk.transport.write(msgs_buf[start:i])
-                start = i
-            i += frame_len
-        if start < n:
-            lk.transport.write(msgs_buf[start:n])
+    def reply(self, msg: Any, link: Link, to: tuple[str, int] | None = None) -> None:
+        """Send an answer to the peer that asked: on ``link``, and on a UDP link only to ``to``
+        (default: the sender of the datagram being handled), not to every peer of the link."""
+        self.reply_many([msg], link, to)
+
+    def reply_many(self, msgs: list, link: Link, to: tuple[str, int] | None = None) -> None:
+        if not msgs:
+            return
+        dest = to if to is not None else link.rx_source
+        t = link.transport
+        if isinstance(t, UdpTransport) and dest is not None:
+            buf = b"".join(self.encode(m) for m in msgs)
+            _write_chunked(lambda b: t.send_to(b, dest), buf)
+        elif isinstance(t, TcpServerTransport) and dest is not None:
+            t.send_to(b"".join(self.encode(m) for m in msgs), int(dest[1]))
+        else:
+            self.send_many(msgs, link)
+            return
+        self.counters["tx_messages"] += len(msgs)
 
     # ------------------------------------------------------------------ input
     def poll(self, timeout_s: float) -> int:
@@ -116,11 +150,17 @@ class Endpoint:
             lk = self._fd_link[fd]
             data = lk.transport.read(fd)
             if isinstance(data, list):  # datagrams
+                t = lk.transport
                 for dgram in data:
                     lk.rx_source = getattr(dgram, "addr", None)
+                    lk.rx_valid = False
                     handled += self.feed(lk, dgram)
                     self._end_of_datagram(lk)
+                    if lk.rx_valid and lk.rx_source is not None and isinstance(t, UdpTransport):
+                        t.learn(lk.rx_source)
             elif data:
+                # A TCP client is its own peer: answers go to it only (None for serial: one peer).
+                lk.rx_source = ("tcp", fd) if isinstance(lk.transport, TcpServerTransport) else None
                 handled += self.feed(lk, data)
         return handled
 
@@ -148,7 +188,10 @@ class Endpoint:
         for msg in msgs:
             mtype = msg.get_type()
             if mtype == "BAD_DATA":
-                reason = getattr(msg, "reason", "")
+                reason = str(getattr(msg, "reason", ""))
+                if "Invalid signature" in reason:
+                    self.counters["rx_unauthenticated"] += 1  # unsigned or wrongly signed: dropped
+                    continue
                 self.counters["rx_bad"] += 1
                 if "unknown MAVLink message ID" in reason:
                     self.counters["rx_unknown_id"] += 1
@@ -161,8 +204,15 @@ class Endpoint:
                 continue
             if msg.get_srcSystem() == SYSTEM_ID and msg.get_srcComponent() == COMPONENT_ID:
                 continue  # our own frames reflected back (e.g. a serial loop)
+            if msg.get_msgId() == signing.SETUP_SIGNING_ID:
+                # It carries a key: never acted on (the key is the operator's), forwarded or logged.
+                self.counters["setup_signing_ignored"] += 1
+                continue
             self.counters["rx_messages"] += 1
-            lk.peers_seen.add((msg.get_srcSystem(), msg.get_srcComponent()))
+            if self.authentic(msg):
+                lk.rx_valid = True
+            else:
+                self.counters["rx_unsigned_allowed"] += 1
             for hook in self.rx_hooks:
                 hook(msg, lk)
             handler = self.handlers.get(mtype)
@@ -183,6 +233,21 @@ class Endpoint:
                 lk.transport.close()
 
 
+def _write_chunked(write: Callable[[bytes], None], msgs_buf: bytes) -> None:
+    """UDP: keep datagrams under a typical MTU, splitting only at frame boundaries."""
+    start = 0
+    i = 0
+    n = len(msgs_buf)
+    while i < n:
+        frame_len = _frame_len(msgs_buf, i)
+        if i + frame_len - start > 1400 and i > start:
+            write(msgs_buf[start:i])
+            start = i
+        i += frame_len
+    if start < n:
+        write(msgs_buf[start:n])
+
+
 def _frame_len(buf: bytes, i: int) -> int:
     """Length of the MAVLink frame starting at ``buf[i]`` (v1 or v2, signed or not)."""
     if buf[i] == 0xFD:
@@ -191,7 +256,7 @@ def _frame_len(buf: bytes, i: int) -> int:
     return 8 + buf[i + 1]
 
 
-def targets_us(msg: object) -> bool:
+def targets_us(msg: Any) -> bool:
     """True if a message addressed with target_system/target_component is for us (0 = broadcast)."""
     ts = getattr(msg, "target_system", 0)
     tc = getattr(msg, "target_component", 0)

@@ -8,7 +8,8 @@ Set current: MISSION_SET_CURRENT. A rejected upload leaves the previous plan in 
 
 Mission items: NAV_WAYPOINT (param1 hold s, param2 acceptance radius m, param4 yaw deg),
 NAV_TAKEOFF (z), NAV_LAND (x, y or 0/0 = here), NAV_LOITER_TIME (param1 s), NAV_RETURN_TO_LAUNCH,
-DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is).
+DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is), DO_LAND_START
+(a marker, as on PX4: the command DO_LAND_START continues the mission from it).
 Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
 (above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
 EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
@@ -52,6 +53,7 @@ NAV_KINDS = {
     mav.MAV_CMD_DO_CHANGE_SPEED: ItemKind.CHANGE_SPEED,
     mav.MAV_CMD_NAV_DELAY: ItemKind.LOITER_TIME,  # MAVSDK's loiter_time_s: wait where the vehicle is
 }
+MAV_CMD_DO_LAND_START = 189
 FENCE_CMDS = {
     mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
     mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
@@ -72,6 +74,7 @@ class ItemError(ValueError):
 @dataclass
 class Transfer:
     link: Link
+    addr: tuple[str, int] | None  # the uploader's UDP address (None on byte streams): re-requests go there
     mission_type: int
     count: int
     sysid: int
@@ -93,23 +96,25 @@ class MissionProtocol:
         self.mission_current = mission_current
         self.plans: dict[int, list] = {MISSION: [], FENCE: []}  # the raw MISSION_ITEM_INT messages
         self.transfer: Transfer | None = None
-        self._last_done: tuple[int, int, int] | None = None  # (link index, type, count) of last upload
+        # (link index, sender address, type, count) of the last upload, to re-ACK a lost final ACK.
+        self._last_done: tuple[int, Any, int, int] | None = None
         for name in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
                      "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
                      "MISSION_ACK"):  # fmt: skip
             self.ep.handlers[name] = getattr(self, "on_" + name.lower())
 
     # ------------------------------------------------------------------ helpers
-    def _ack(self, link: Link, msg: object, code: int, mission_type: int) -> None:
-        self.ep.send(
+    def _ack(self, link: Link, msg: Any, code: int, mission_type: int) -> None:
+        self.ep.reply(
             mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
         )
         if code != mav.MAV_MISSION_ACCEPTED:
             self.ep.counters["mission_errors"] += 1
 
     def _request(self, tr: Transfer) -> None:
-        self.ep.send(
-            mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link
+        self.ep.reply(
+            mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link,
+            tr.addr,
         )
         tr.deadline = time.monotonic() + REQUEST_TIMEOUT_S
 
@@ -119,9 +124,9 @@ class MissionProtocol:
         if tr is None or time.monotonic() < tr.deadline:
             return
         if tr.retries >= REQUEST_RETRIES:
-            self.ep.send(
+            self.ep.reply(
                 mav.MAVLink_mission_ack_message(tr.sysid, tr.compid, mav.MAV_MISSION_OPERATION_CANCELLED,
-                                              tr.mission_type), tr.link)  # fmt: skip
+                                              tr.mission_type), tr.link, tr.addr)  # fmt: skip
             self.ep.counters["mission_timeouts"] += 1
             self.transfer = None
             return
@@ -129,7 +134,7 @@ class MissionProtocol:
         self._request(tr)
 
     # ------------------------------------------------------------------ upload
-    def on_mission_count(self, msg: object, link: Link) -> None:
+    def on_mission_count(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -144,23 +149,23 @@ class MissionProtocol:
             self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
             return
         # A new MISSION_COUNT restarts any transfer in progress (a retried count is a restart too).
-        self.transfer = Transfer(link, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
+        self.transfer = Transfer(link, link.rx_source, mtype, msg.count, msg.get_srcSystem(), msg.get_srcComponent())
         self._request(self.transfer)
 
-    def on_mission_item(self, msg: object, link: Link) -> None:
+    def on_mission_item(self, msg: Any, link: Link) -> None:
         # Legacy float item: same fields, lat/lon in degrees.
         self._on_item(msg, link, as_int=False)
 
-    def on_mission_item_int(self, msg: object, link: Link) -> None:
+    def on_mission_item_int(self, msg: Any, link: Link) -> None:
         self._on_item(msg, link, as_int=True)
 
-    def _on_item(self, msg: object, link: Link, as_int: bool) -> None:
+    def _on_item(self, msg: Any, link: Link, as_int: bool) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
         tr = self.transfer
-        if tr is None or tr.link is not link or tr.mission_type != mtype:
-            if self._last_done == (link.index, mtype, msg.seq + 1):
+        if tr is None or tr.link is not link or tr.addr != link.rx_source or tr.mission_type != mtype:
+            if self._last_done == (link.index, link.rx_source, mtype, msg.seq + 1):
                 self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)  # our final ACK was lost
             else:
                 self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype)
@@ -196,7 +201,7 @@ class MissionProtocol:
             self.transfer = None
             return
         self.transfer = None
-        self._last_done = (link.index, mtype, tr.count)
+        self._last_done = (link.index, link.rx_source, mtype, tr.count)
         self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)
 
     def _validate(self, it: dict, mtype: int) -> None:
@@ -213,6 +218,8 @@ class MissionProtocol:
             elif cmd != mav.MAV_CMD_NAV_FENCE_RETURN_POINT and not (math.isfinite(it["param1"]) and it["param1"] >= 3):
                 raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, "polygon needs >= 3 vertices")
             return
+        if cmd == MAV_CMD_DO_LAND_START:
+            return  # a marker; its position fields are informative only (PX4 ignores them too)
         kind = NAV_KINDS.get(cmd)
         if kind is None:
             raise ItemError(mav.MAV_MISSION_UNSUPPORTED, f"command {cmd} not supported")
@@ -263,7 +270,17 @@ class MissionProtocol:
             ned[2] = home.alt_m - it["z"]
         return ned
 
+    def land_start_index(self) -> int | None:
+        """Index of the mission's DO_LAND_START item (the first one), None without one."""
+        for i, it in enumerate(self.plans[MISSION]):
+            if it["command"] == MAV_CMD_DO_LAND_START:
+                return i
+        return None
+
     def _to_item(self, it: dict) -> MissionItem:
+        if it["command"] == MAV_CMD_DO_LAND_START:
+            # A no-op item keeps the autopilot's indices equal to the plan's: a speed change to "no change".
+            return MissionItem(ItemKind.CHANGE_SPEED, speed_m_s=math.nan)
         kind = NAV_KINDS[it["command"]]
         if kind == ItemKind.CHANGE_SPEED:
             s = it["param2"]
@@ -306,18 +323,18 @@ class MissionProtocol:
         return fence
 
     # ------------------------------------------------------------------ download, clear, current
-    def on_mission_request_list(self, msg: object, link: Link) -> None:
+    def on_mission_request_list(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
         if mtype not in (MISSION, FENCE):
             self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
             return
-        self.ep.send(
+        self.ep.reply(
             mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
                                             mtype), link)  # fmt: skip
 
-    def on_mission_request_int(self, msg: object, link: Link) -> None:
+    def on_mission_request_int(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -330,7 +347,7 @@ class MissionProtocol:
             return
         it = plan[msg.seq]
         fc = self.ap.fc
-        self.ep.send(
+        self.ep.reply(
             mav.MAVLink_mission_item_int_message(
                 msg.get_srcSystem(), msg.get_srcComponent(), msg.seq, it["frame"], it["command"],
                 int(mtype == MISSION and msg.seq == fc.mission_index), it["autocontinue"],
@@ -342,7 +359,7 @@ class MissionProtocol:
 
     on_mission_request = on_mission_request_int
 
-    def on_mission_clear_all(self, msg: object, link: Link) -> None:
+    def on_mission_clear_all(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mtype = getattr(msg, "mission_type", MISSION)
@@ -358,7 +375,7 @@ class MissionProtocol:
             return
         self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype_ack)
 
-    def on_mission_set_current(self, msg: object, link: Link) -> None:
+    def on_mission_set_current(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         fc = self.ap.fc
@@ -371,11 +388,11 @@ class MissionProtocol:
             fc.mission_index = msg.seq
         self.ep.send_many(self.mission_current())
 
-    def on_mission_ack(self, msg: object, link: Link) -> None:
+    def on_mission_ack(self, msg: Any, link: Link) -> None:
         pass  # end of a download: nothing to release, downloads are stateless here
 
 
-def _normalise(msg: object, as_int: bool) -> dict:
+def _normalise(msg: Any, as_int: bool) -> dict:
     scale = 1e-7 if as_int else 1.0
     return {
         "frame": int(msg.frame), "command": int(msg.command), "autocontinue": int(msg.autocontinue),

@@ -15,6 +15,7 @@ non-unit quaternion) is dropped and counted in ``endpoint.counters["setpoints_re
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ class OffboardHandler:
     def _reject(self) -> None:
         self.ep.counters["setpoints_rejected"] += 1
 
-    def _apply(self, pos: np.ndarray | None, msg: object, frame: int, rel_pos: bool) -> None:
+    def _apply(self, pos: np.ndarray | None, msg: Any, frame: int, rel_pos: bool) -> None:
         ap = self.ap
         mask = int(msg.type_mask)
         yaw_now = float(quat_to_euler(ap.attitude())[2])
@@ -96,7 +97,7 @@ class OffboardHandler:
         ap.fc.offboard_setpoint(ap.clock(), pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate)
         self.ep.counters["setpoints"] += 1
 
-    def on_local(self, msg: object, link: Link) -> None:
+    def on_local(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         frame = int(msg.coordinate_frame)
@@ -112,7 +113,7 @@ class OffboardHandler:
         except RejectedError:
             self._reject()
 
-    def on_global(self, msg: object, link: Link) -> None:
+    def on_global(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         frame = int(msg.coordinate_frame)
@@ -139,7 +140,7 @@ class OffboardHandler:
         except RejectedError:
             self._reject()
 
-    def on_attitude(self, msg: object, link: Link) -> None:
+    def on_attitude(self, msg: Any, link: Link) -> None:
         if not targets_us(msg):
             return
         mask = int(msg.type_mask)

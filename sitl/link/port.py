@@ -26,6 +26,8 @@ class AutopilotPort:
     attitude: the vehicle's attitude quaternion [w, x, y, z], body FRD -> NED.
     home: the geodetic origin of the local NED frame (lat, lon deg, alt m AMSL).
     mission_changed: call after the mission or its current item changed (MISSION_CURRENT goes out).
+    mode_commanded: call after a command chose a mode or armed/disarmed (ends a mission landing's
+        reporting as AUTO.MISSION, see :class:`sitl.link.telemetry.Telemetry`).
     """
 
     fc: FlightController
@@ -34,6 +36,7 @@ class AutopilotPort:
     attitude: Callable[[], np.ndarray]
     home: HomeConfig
     mission_changed: Callable[[], None]
+    mode_commanded: Callable[[], None] = lambda: None
 
     def home_amsl(self) -> float:
         """Home altitude AMSL, m (the origin's altitude minus the home point's NED down)."""

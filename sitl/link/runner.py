@@ -15,11 +15,13 @@ import logging
 import math
 import threading
 import time
+from typing import Any
 
 from sitl.autopilot.flight_modes import ItemKind, Mode
-from sitl.link.commands import CommandHandler
+from sitl.link.commands import CommandHandler, autopilot_version
 from sitl.link.datalink import DataLinkFailsafe
 from sitl.link.endpoint import Endpoint, Link, targets_us
+from sitl.link.ftp import FtpServer
 from sitl.link.geofence import Geofence
 from sitl.link.mission_protocol import MissionProtocol
 from sitl.link.offboard import OffboardHandler
@@ -31,6 +33,7 @@ from sitl.link.telemetry import Telemetry
 from sitl.link.transports import Transport
 from sitl.simulation import Simulation
 from wire.dialect import mavlink as mav
+from wire.signing import SigningKey
 
 log = logging.getLogger(__name__)
 
@@ -46,14 +49,19 @@ class SitlLink:
         transports: the byte pipes (UDP, TCP server, serial), all served at once.
         speed: simulation seconds per wall-clock second (> 0).
         true_wind_hz: rate of the simulation-only TRUEW* debug values (0 = off).
+        signing_key: MAVLink 2 signing on every link (:mod:`wire.signing`); None: no signing.
+        allow_sim_params: the simulation knobs (``SIM_*``) may be set over MAVLink; otherwise a
+            PARAM_SET of one is refused (PARAM_ERROR PERMISSION_DENIED) and the value stays.
     """
 
     def __init__(self, sim: Simulation, transports: list[Transport], speed: float = 1.0,
-                 true_wind_hz: float = 5.0) -> None:  # fmt: skip
+                 true_wind_hz: float = 5.0, signing_key: SigningKey | None = None,
+                 allow_sim_params: bool = False) -> None:  # fmt: skip
         if not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"speed {speed}: must be a finite number > 0")
         self.sim = sim
-        self.endpoint = Endpoint(transports)
+        self.allow_sim_params = bool(allow_sim_params)
+        self.endpoint = Endpoint(transports, signing_key)
         self.telemetry = Telemetry(sim)
         self.streams = StreamScheduler(self.telemetry, true_wind_hz)
         self.geofence = Geofence()
@@ -61,18 +69,22 @@ class SitlLink:
         ep = self.endpoint
         self.port = AutopilotPort(fc=sim.fc, clock=lambda: sim.t, position=lambda: sim.position,
                                   attitude=lambda: sim.quaternion, home=sim.scenario.sensors.home,
-                                  mission_changed=self.mission_changed)  # fmt: skip
+                                  mission_changed=self.mission_changed,
+                                  mode_commanded=self.telemetry.end_mission_landing)  # fmt: skip
         self.commands = CommandHandler(ep, self.port, self.streams)
         self.missions = MissionProtocol(ep, self.port, self.geofence, self.telemetry.mission_current)
+        self.commands.land_start_index = self.missions.land_start_index
         self.offboard = OffboardHandler(ep, self.port)
         self.knobs = WorldKnobs(sim.world)
         self.params = ParamTable(sitl_parameters(sim.autopilot, self.geofence, self.knobs,
-                                                 lambda: self.speed, self.set_speed))  # fmt: skip
+                                                 lambda: self.speed, self.set_speed, self._sim_lock))  # fmt: skip
         self.param_protocol = ParamProtocol(ep, self.params)
+        self.ftp = FtpServer(ep)  # answers MAVProxy's / QGC's FTP at once, as PX4 (read-only, empty tree)
         # NAV_DLL_ACT: land when the ground link's heartbeats stop.
         self.datalink = DataLinkFailsafe(ep, sim.fc, lambda: sim.t, self.params)
         sim.step_hooks.append(self.datalink.on_mode_tick)
-        ep.handlers["HEARTBEAT"] = lambda msg, link: None
+        ep.handlers["HEARTBEAT"] = self.on_heartbeat
+        self._greeted: set[tuple] = set()
         ep.handlers["TIMESYNC"] = self.on_timesync
         ep.handlers["PING"] = self.on_ping
         self.speed = float(speed)
@@ -85,6 +97,9 @@ class SitlLink:
         self._last_index = sim.fc.mission_index
         self.chunks = 0
         self.lag_max_s = 0.0
+
+    def _sim_lock(self) -> str | None:
+        return None if self.allow_sim_params else "simulation knobs need --allow-sim-params"
 
     @property
     def counters(self) -> dict[str, int]:
@@ -107,13 +122,28 @@ class SitlLink:
         self._last_index = -1  # announce MISSION_CURRENT at the next chunk
 
     # ------------------------------------------------------------------ small handlers
-    def on_timesync(self, msg: object, link: Link) -> None:
+    def on_timesync(self, msg: Any, link: Link) -> None:
         if msg.tc1 == 0:  # a request: answer with our (simulation) clock
-            self.endpoint.send(mav.MAVLink_timesync_message(int(self.sim.t * 1e9), msg.ts1), link)
+            self.endpoint.reply(mav.MAVLink_timesync_message(int(self.sim.t * 1e9), msg.ts1), link)
 
-    def on_ping(self, msg: object, link: Link) -> None:
+    def on_heartbeat(self, msg: Any, link: Link) -> None:
+        """A ground station's first HEARTBEAT gets AUTOPILOT_VERSION unasked. PX4 sends it blindly when a
+        serial link starts; clients that ask only once per heartbeat (dronekit) would otherwise read their
+        version as None when a short parameter download ends before the answer."""
+        if getattr(msg, "type", None) != mav.MAV_TYPE_GCS or not self.endpoint.authentic(msg):
+            return
+        key = (link.index, link.rx_source, msg.get_srcSystem(), msg.get_srcComponent())
+        if key in self._greeted:
+            return
+        if len(self._greeted) >= 256:  # bounded: a flood of forged senders cannot grow it
+            self._greeted.clear()
+            self.counters["greeted_reset"] += 1
+        self._greeted.add(key)
+        self.endpoint.reply(autopilot_version(), link)
+
+    def on_ping(self, msg: Any, link: Link) -> None:
         if msg.target_system == 0 and msg.target_component == 0:
-            self.endpoint.send(
+            self.endpoint.reply(
                 mav.MAVLink_ping_message(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()), link
             )
         elif not targets_us(msg):
@@ -142,14 +172,21 @@ class SitlLink:
             fc.events.clear()
         if fc.mission_reached:
             for i in fc.mission_reached:
+                kind = fc.mission[i].kind if i < len(fc.mission) else None
                 # PX4 hands a NAV_RETURN_TO_LAUNCH item over to RTL mode without reporting it
                 # reached, and MAVSDK's is_mission_finished() counts on exactly that.
-                if i < len(fc.mission) and fc.mission[i].kind == ItemKind.RTL:
+                if kind == ItemKind.RTL:
                     tel.rtl_handover = i
                     self._last_index = -1  # announce the completed state now
                     continue
+                if kind == ItemKind.LAND:
+                    # PX4 flies a land item inside Mission mode and reports it reached on touchdown.
+                    tel.mission_landing = i
+                    self._last_index = -1
+                    continue
                 out.append(mav.MAVLink_mission_item_reached_message(i))
             fc.mission_reached.clear()
+        out.extend(tel.mission_landing_step())
         if fc.mission_index != self._last_index:
             self._last_index = fc.mission_index
             out.extend(tel.mission_current())

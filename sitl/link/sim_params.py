@@ -16,7 +16,7 @@ import numpy as np
 from sitl.autopilot.builtin import BuiltinAutopilot
 from sitl.autopilot.controller import GAIN_NAMES
 from sitl.link.geofence import Geofence
-from sitl.link.params import Param
+from sitl.link.params import INT32, Param
 from sitl.world.world import World
 
 FLIGHT_PARAMS = (  # PX4 name, FlightConfig field, range
@@ -82,8 +82,12 @@ class WorldKnobs:
 
 
 def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: WorldKnobs,
-                    speed: Callable[[], float], set_speed: Callable[[float], None]) -> list[Param]:  # fmt: skip
-    """The SITL's parameter list, in its fixed order (indices are stable across runs)."""
+                    speed: Callable[[], float], set_speed: Callable[[float], None],
+                    sim_lock: Callable[[], str | None] | None = None) -> list[Param]:  # fmt: skip
+    """The SITL's parameter list, in its fixed order (indices are stable across runs).
+
+    ``sim_lock``: why the simulation knobs (``SIM_*``) may not be set over MAVLink now (None: they may);
+    it is the ``locked`` of every SIM_* parameter (the SITL's own API is not locked)."""
     params: list[Param] = []
     for g in GAIN_NAMES:
         params.append(Param(f"CTL_{g.upper()}"[:16], lambda g=g: autopilot.gain(g),
@@ -91,8 +95,8 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
     cfg = autopilot.fc.config
     for name, attr, lo, hi in FLIGHT_PARAMS:
         params.append(Param(name, lambda a=attr: getattr(cfg, a), lambda v, a=attr: setattr(cfg, a, float(v)), lo, hi))
-    params.append(Param("GF_ACTION", lambda: float(geofence.action),
-                        lambda v: setattr(geofence, "action", int(v)), 0, 4))  # fmt: skip
+    params.append(Param("GF_ACTION", lambda: geofence.action,
+                        lambda v: setattr(geofence, "action", int(v)), 0, 4, INT32))  # fmt: skip
     params.append(Param("SIM_SPEED", speed, set_speed, 0.05, 1000.0))
     for i, axis in enumerate("NED"):
         params.append(Param(f"SIM_WIND_{axis}", lambda i=i: knobs.wind_mean()[i],
@@ -101,5 +105,8 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
     for name, group, attr, hi in NOISE_PARAMS:
         params.append(Param(name, lambda g=group, a=attr: knobs.noise(g, a),
                             lambda v, g=group, a=attr: knobs.set_noise(g, a, v), 0.0, hi))  # fmt: skip
-    params.append(Param("MAV_SYS_ID", lambda: 1.0, None, 1, 1))
+    params.append(Param("MAV_SYS_ID", lambda: 1, None, 1, 1, INT32))
+    for p in params:
+        if p.name.startswith("SIM_"):
+            p.locked = sim_lock
     return params

@@ -87,6 +87,11 @@ class Telemetry:
         # Index of a final NAV_RETURN_TO_LAUNCH item handed over to RTL mode: the mission is then
         # complete (PX4 reports MISSION_STATE_COMPLETE; MAVSDK 4 reads it as "mission finished").
         self.rtl_handover: int | None = None  # SYSTEM_TIME's UNIX time = this + sim time
+        # Index of a mission LAND item being flown: PX4 stays in AUTO.MISSION through the landing (and
+        # after the disarm), reporting the item reached on touchdown; the built-in autopilot lands in
+        # its LAND mode, so the link reports it as PX4 would (None: no mission landing).
+        self.mission_landing: int | None = None
+        self._landing_reported = False
 
     # ------------------------------------------------------------------ state
     def ingest(self, samples: dict[str, list]) -> None:
@@ -131,13 +136,42 @@ class Telemetry:
     def _geo(self, pos: np.ndarray) -> tuple[float, float, float]:
         return ned_to_geodetic(pos, self.home_cfg)
 
+    # ------------------------------------------------------------------ mission landing (PX4's view)
+    def reported_mode(self) -> Mode:
+        """The mode on the wire: the autopilot's, except AUTO.MISSION during and after a mission landing."""
+        mode = self.sim.fc.mode
+        if self.mission_landing is not None and mode in (Mode.LAND, Mode.HOLD):
+            return Mode.MISSION
+        return mode
+
+    def end_mission_landing(self) -> None:
+        """A command chose another mode (or armed): the mission landing is over on the wire."""
+        self.mission_landing = None
+
+    def mission_landing_step(self) -> list:
+        """MISSION_ITEM_REACHED of the land item once on the ground; end the landing's reporting when the
+        autopilot leaves it (another mode, or armed again in Hold)."""
+        fc = self.sim.fc
+        i = self.mission_landing
+        if i is None:
+            self._landing_reported = False
+            return []
+        if fc.mode not in (Mode.LAND, Mode.HOLD) or (fc.armed and fc.mode == Mode.HOLD and self._landing_reported):
+            self.mission_landing = None
+            return []
+        if not self._landing_reported and (not fc.armed or fc.on_ground):
+            self._landing_reported = True
+            return [mavlink.MAVLink_mission_item_reached_message(i), *self.mission_current()]
+        return []
+
     # ------------------------------------------------------------------ periodic builders
     def heartbeat(self) -> list:
         fc = self.sim.fc
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
         if fc.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-        main, _ = px4_modes.from_name(fc.mode.value)
+        mode = self.reported_mode()
+        main, _ = px4_modes.from_name(mode.value)
         if main == px4_modes.MAIN_AUTO:
             base |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
         elif main == px4_modes.MAIN_OFFBOARD:
@@ -154,7 +188,7 @@ class Telemetry:
             status = mavlink.MAV_STATE_STANDBY
         return [
             mavlink.MAVLink_heartbeat_message(
-                mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, px4_custom_mode(fc.mode), status, 3
+                mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, px4_custom_mode(mode), status, 3
             )
         ]
 
@@ -319,6 +353,9 @@ class Telemetry:
         seq = min(fc.mission_index, max(n - 1, 0))
         if fc.mode == Mode.MISSION:
             self.rtl_handover = None
+        if self.mission_landing is not None and not self._landing_reported:
+            # Still landing on the mission's land item: PX4 reports it current and the mission active.
+            return [mavlink.MAVLink_mission_current_message(self.mission_landing, n, mavlink.MISSION_STATE_ACTIVE, 1)]
         if n == 0:
             state = mavlink.MISSION_STATE_NO_MISSION
         elif fc.mission_index >= n or self.rtl_handover == fc.mission_index:

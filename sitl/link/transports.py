@@ -12,6 +12,7 @@ import errno
 import os
 import socket
 import termios
+import time
 import tty
 from dataclasses import dataclass
 
@@ -36,6 +37,9 @@ class TransportStats:
     rx_bytes: int = 0
     tx_bytes: int = 0
     tx_errors: int = 0
+    peers_learned: int = 0
+    peers_expired: int = 0
+    peers_evicted: int = 0
 
 
 class Transport:
@@ -63,12 +67,18 @@ class Transport:
 
 
 class UdpTransport(Transport):
-    """One UDP socket bound to ``bind`` that sends to ``peers`` and to whoever sends to it.
+    """One UDP socket bound to ``bind`` that sends to ``peers`` and to whoever talks to it.
 
     Like PX4's ``mavlink start -u ... -o ...``: the configured peers (an API port, a ground
-    station port) get every message before they ever talk; a sender from another address is
-    added to the peers so it is answered too.
+    station port) get every message before they ever talk and stay for good. A sender from another
+    address is *learned* by the endpoint (:meth:`learn`) once one of its datagrams held a valid frame
+    (an authenticated one when signing is on), and is then sent everything too. Learned peers are
+    bounded (``MAX_LEARNED``: a new one evicts the longest silent) and expire after ``PEER_TIMEOUT_S``
+    wall seconds of silence; both are counted in :attr:`stats`.
     """
+
+    MAX_LEARNED = 32
+    PEER_TIMEOUT_S = 30.0
 
     def __init__(self, peers: list[tuple[str, int]], bind: tuple[str, int] = ("0.0.0.0", 0)) -> None:
         super().__init__()
@@ -76,8 +86,38 @@ class UdpTransport(Transport):
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.sock.bind(bind)
         self.sock.setblocking(False)
-        self.peers: list[tuple[str, int]] = [(socket.gethostbyname(h), p) for h, p in peers]
+        self.configured: list[tuple[str, int]] = [(socket.gethostbyname(h), p) for h, p in peers]
+        self.learned: dict[tuple[str, int], float] = {}  # address -> last time heard (monotonic s)
+        self._next_expiry = 0.0
         self.name = f"udp:{self.port}"
+
+    @property
+    def peers(self) -> list[tuple[str, int]]:
+        """Everyone a broadcast goes to: the configured peers, then the learned ones."""
+        return self.configured + [a for a in self.learned if a not in self.configured]
+
+    def learn(self, addr: tuple[str, int], now: float | None = None) -> None:
+        """A sender proved to speak MAVLink (to us): answer it from now on (bounded, expiring)."""
+        now = time.monotonic() if now is None else now
+        if addr in self.configured:
+            return
+        if addr not in self.learned:
+            if len(self.learned) >= self.MAX_LEARNED:
+                oldest = min(self.learned, key=self.learned.__getitem__)
+                del self.learned[oldest]
+                self.stats.peers_evicted += 1
+            self.stats.peers_learned += 1
+        self.learned[addr] = now
+
+    def expire(self, now: float | None = None) -> None:
+        """Forget learned peers silent for ``PEER_TIMEOUT_S`` (checked at most once a second)."""
+        now = time.monotonic() if now is None else now
+        if now < self._next_expiry:
+            return
+        self._next_expiry = now + 1.0
+        for addr in [a for a, t in self.learned.items() if now - t > self.PEER_TIMEOUT_S]:
+            del self.learned[addr]
+            self.stats.peers_expired += 1
 
     @property
     def port(self) -> int:
@@ -99,8 +139,6 @@ class UdpTransport(Transport):
             except OSError:
                 # ICMP port unreachable from a peer not (yet) listening surfaces here on Linux.
                 continue
-            if addr not in self.peers:
-                self.peers.append(addr)
             chunks.append(Datagram(data, addr))
             self.stats.rx_bytes += len(data)
         return chunks
@@ -110,6 +148,7 @@ class UdpTransport(Transport):
 
     def write_except(self, data: bytes, skip: tuple[str, int] | None) -> None:
         """Send to every peer but ``skip`` (the sender of a forwarded frame)."""
+        self.expire()
         for peer in self.peers:
             if peer == skip:
                 continue
@@ -118,6 +157,14 @@ class UdpTransport(Transport):
                 self.stats.tx_bytes += len(data)
             except OSError:
                 self.stats.tx_errors += 1
+
+    def send_to(self, data: bytes, peer: tuple[str, int]) -> None:
+        """Send to one peer only (an answer to the peer that asked)."""
+        try:
+            self.sock.sendto(data, peer)
+            self.stats.tx_bytes += len(data)
+        except OSError:
+            self.stats.tx_errors += 1
 
     def close(self) -> None:
         self.sock.close()
@@ -178,6 +225,21 @@ class TcpServerTransport(Transport):
             return b""
         self.stats.rx_bytes += len(data)
         return data
+
+    def send_to(self, data: bytes, fd: int) -> None:
+        """Send to one client only (an answer to the client that asked); gone clients are skipped."""
+        conn = self.clients.get(fd)
+        if conn is None:
+            return
+        try:
+            n = conn.send(data)
+            self.stats.tx_bytes += n
+            if n < len(data):
+                self.stats.tx_errors += 1
+        except (BlockingIOError, InterruptedError):
+            self.stats.tx_errors += 1
+        except OSError:
+            self._drop(fd)
 
     def _drop(self, fd: int) -> None:
         conn = self.clients.pop(fd, None)

@@ -79,7 +79,7 @@ class TlogWriter:
         ep = link.endpoint
         encode = ep.encode
 
-        def tapped(msg: object) -> bytes:
+        def tapped(msg: Any) -> bytes:
             buf = encode(msg)
             self.write(buf)
             return buf
@@ -226,6 +226,9 @@ class TruthSummary:
             "armed": bool(sim.fc.armed),
             "crashed": bool(sim.crashed),
             "forwarded_messages": int(self.link.counters.get("forwarded", 0)),
+            # Counts only: the key itself is never written anywhere.
+            "signing": ({"rx_unauthenticated": int(self.link.counters.get("rx_unauthenticated", 0)),
+                         **self.link.endpoint.signing_counts()} if self.link.endpoint.signing_on else None),
             "statustexts_received": self.statustexts,
         }
         srcs = d["true_sources_ned_m"]
