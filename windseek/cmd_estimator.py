@@ -43,6 +43,7 @@ from wire.names import ESTIMATOR_COMPONENT
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
+ROTOR_MESSAGES = ("ESC_STATUS", "RAW_RPM", "ESC_INFO")
 #: Message ids and the rate (Hz) asked for when an input is missing at start.
 WANTED = {"imu": (("HIL_SENSOR", "HIGHRES_IMU"), 105, 100.0),
           "attitude": (("ATTITUDE_QUATERNION", "ATTITUDE"), 31, 50.0),
@@ -102,6 +103,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(EXTENDED_SYS_STATE) "
                    "and replace a filter that flew at the next take-off (default on; estimator.ground_gate)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
+    p.add_argument("--esc-component", type=int, default=None, metavar="ID",
+                   help="rotor speeds (ESC_STATUS, RAW_RPM, ESC_INFO) only from this MAVLink component (158 with "
+                   "windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default any)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
     p.add_argument("--link-timeout", type=float, default=10.0, metavar="S",
                    help="stop when nothing arrived for S wall seconds (0 = never; default 10)")
@@ -381,6 +385,9 @@ def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, ev
             continue
         if msg.get_srcSystem() == conn.mav.srcSystem and msg.get_srcComponent() == ESTIMATOR_COMPONENT:
             continue  # our own frames, echoed by a forwarder
+        if args.esc_component is not None and msg.get_type() in ROTOR_MESSAGES \
+                and msg.get_srcComponent() != args.esc_component:
+            continue  # another component's rotor telemetry (PX4 SITL's placeholder ESC_STATUS)
         last_rx = time.monotonic()
         live.handle(msg)
         if args.publish and live.due():

@@ -51,6 +51,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(scales the wall-clock waits)")
     p.add_argument("--seed", type=int, default=0, help="seed of the strategy's randomized choices")
     p.add_argument("--vehicle", default="nasa_quad", help="vehicle file of the estimator's force model")
+    p.add_argument("--esc-component", type=int, default=None, metavar="ID",
+                   help="rotor speeds (ESC_STATUS) only from this MAVLink component of the vehicle (158 with "
+                   "windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default any)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = MissionConfig(
         connect=args.connect, strategy=args.strategy, params=load_params(args.strategy, args.params),
         altitude_m=args.altitude, wind=args.wind, limits=limits, vehicle=args.vehicle, seed=args.seed,
-        speed_hint=args.speed_hint, say=say,
+        speed_hint=args.speed_hint, esc_component=args.esc_component, say=say,
     )  # fmt: skip
     res = asyncio.run(run_mission(cfg))
     if args.json:

@@ -66,6 +66,7 @@ class MissionConfig:
     hold_s: vehicle seconds to hold before landing after an abort.
     link_grace_s: wall seconds to wait for the link to come back after a loss.
     speed_hint: the simulator's speed factor, if known: wall-clock waits are divided by it.
+    esc_component: rotor telemetry only from this component (158 with ``windseek sitl --px4``); None: any.
     say: where the runner's lines go (default print).
     """
 
@@ -84,6 +85,7 @@ class MissionConfig:
     hold_s: float = 2.0
     link_grace_s: float = 30.0
     speed_hint: float = 1.0
+    esc_component: int | None = None
     say: Callable[[str], None] = print
 
 
@@ -98,7 +100,7 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
         params = replace(params, altitude_m=float(cfg.altitude_m))
     wall0 = time.monotonic()
     link = LinkConfig(cfg.connect, cfg.connect_timeout_s, cfg.health_timeout_s, cfg.limits.link_timeout_s,
-                      cfg.speed_hint)  # fmt: skip
+                      cfg.speed_hint, esc_component=cfg.esc_component)  # fmt: skip
     estimated: EstimatedLiveWind | None = None
     extra: tuple[str, ...] = ()
     sink = None

@@ -42,6 +42,8 @@ from wire.names import publish
 STATE_MESSAGES = ("HEARTBEAT", "EXTENDED_SYS_STATE", "LOCAL_POSITION_NED", "ATTITUDE_QUATERNION",
                   "NAMED_VALUE_FLOAT", "STATUSTEXT")  # fmt: skip
 MAV_AUTOPILOT_INVALID = 8
+#: Rotor telemetry messages (filtered by ``LinkConfig.esc_component``).
+ROTOR_MESSAGES = ("ESC_STATUS", "RAW_RPM", "ESC_INFO")
 MAV_STATE_EMERGENCY = 6
 #: Mission status queued for the wire at most (the oldest are dropped, counted).
 OUTBOX_MAX = 64
@@ -56,7 +58,7 @@ class LinkConfig:
     """connect: MAVSDK URL; connect_timeout_s / health_timeout_s: wall seconds to wait for a heartbeat /
     for health; link_timeout_s: wall seconds without telemetry that count as a loss; speed_hint: the
     simulator's speed factor (wall-clock waits are divided by it); command_timeout_s: wall seconds
-    a command may take."""
+    a command may take; esc_component: see below."""
 
     connect: str
     connect_timeout_s: float = 20.0
@@ -64,6 +66,9 @@ class LinkConfig:
     link_timeout_s: float = 3.0
     speed_hint: float = 1.0
     command_timeout_s: float = 5.0
+    #: Take rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) only from this component of the autopilot's system
+    #: (158: ``windseek sitl --px4``'s ESC telemetry; PX4 SITL's own ESC_STATUS is a placeholder). None: any.
+    esc_component: int | None = None
 
 
 class MavsdkVehicle:
@@ -79,6 +84,9 @@ class MavsdkVehicle:
         self.counters: Counter[str] = Counter()
         self.wind_cov: tuple[float, np.ndarray, np.ndarray] | None = None  # (t, wind NED, cov) of WIND_COV
         self.target: tuple[int, int] | None = None  # (system, component) locked on
+        #: Component whose CHEM readings are used: the first that sent one. PX4 re-publishes every
+        #: NAMED_VALUE_FLOAT it receives as its own (a debug value, at a lower rate): that copy is ignored.
+        self.chem_component: int | None = None
         self._last_rx = -math.inf  # wall time of the last message from the target
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -185,6 +193,15 @@ class MavsdkVehicle:
                 st.t = t
             elif not t < st.t or math.isnan(st.t):
                 st.t = t
+        if name in ROTOR_MESSAGES and self.cfg.esc_component is not None and compid != self.cfg.esc_component:
+            self.counters["rx_esc_other_component"] += 1
+            return
+        if name == "NAMED_VALUE_FLOAT" and str(f.get("name", "")).rstrip("\x00") == "CHEM":
+            if self.chem_component is None:
+                self.chem_component = compid
+            elif compid != self.chem_component:
+                self.counters["rx_chem_relayed"] += 1
+                return
         if self.sink is not None:
             self.sink(name, f, t)
         if compid != self.target[1] and name not in ("NAMED_VALUE_FLOAT", "WIND_COV", "STATUSTEXT"):
