@@ -101,6 +101,7 @@ class HilBridge:
             self.state_interval_s = 1.0 / STATE_RATE_HZ
         else:
             self.state_interval_s = max(float(interval_us) * 1e-6, 1.0 / STATE_RATE_HZ)
+        self._next_state = self.world.t + self.state_interval_s - self.imu_period_s
 
     def on_controls(self, controls: object, mode: int) -> bool:
         """PX4's HIL_ACTUATOR_CONTROLS ``controls`` and ``mode``: the rotor command from the next step on."""

@@ -31,6 +31,7 @@ from collections.abc import Callable
 import numpy as np
 
 from sitl.autopilot.builtin import BuiltinAutopilot
+from sitl.autopilot.fused import advance_controlled
 from sitl.hil.motors import N_MOTORS, MotorMap
 from sitl.world.world import Pilot, RotorCommand, World
 
@@ -59,6 +60,18 @@ class ControlGuard:
         self._bad_since = math.nan
         self._reported: set[str] = set()
         self._reconnected = False
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile (or load from numba's cache) the safety pilot's kernel now, on scratch copies of the
+        world's arrays: compiling it when it is needed would stall the world for tens of seconds."""
+        w = self.world
+        sc = w.scenario
+        ph = w.phys
+        ap = BuiltinAutopilot(sc.flight, sc.gains, np.zeros(3), 0.0)
+        advance_controlled(1, 0, ph.dt, ph.x.copy(), ph.flags.copy(), ph.params, ph.crash_speed, ph.imu_div,
+                           ph.rows.copy(), ph.fb.copy(), w.wind_kernel, ap.fc.sp, ap.gains, ap.cs,
+                           ap.accel_sp)  # fmt: skip
 
     @property
     def pilot(self) -> Pilot:

@@ -119,8 +119,10 @@ class UdpPeripheral:
                     self.counters["rx_bad"] += 1
                 else:
                     out.append(m)
-            # A datagram holds whole frames: never carry a partial frame into the next one.
+            # A datagram holds whole frames: a partial one is bad, and never carried into the next datagram.
             p = self._parser
+            if p.buf_len() > 0:
+                self.counters["rx_bad"] += 1
             p.buf, p.buf_index, p.have_prefix_error = bytearray(), 0, False
             p.expected_length = mavlink.HEADER_LEN_V1 + 2
         self.counters["rx_messages"] += len(out)

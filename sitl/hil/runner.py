@@ -155,7 +155,8 @@ class HilRunner:
     # ------------------------------------------------------------------ steps
     def _send(self, out: Any) -> None:
         self.link.send(out.to_px4)
-        if self.peripheral is not None and out.to_companion:
+        # The peripheral speaks as a component of PX4's system: not before its id is known.
+        if self.peripheral is not None and out.to_companion and self.px4_system is not None:
             self.peripheral.send(out.to_companion)
 
     def _lockstep_step(self) -> None:
@@ -284,7 +285,8 @@ class HilRunner:
         p = self.peripheral
         if p is None:
             return
-        p.heartbeat(time.monotonic())
+        if self.px4_system is not None:
+            p.heartbeat(time.monotonic())
         for m in p.poll():
             self.bridge.truth.on_message(m)
 
