@@ -8,8 +8,18 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from hil_support import ARMED, DISARMED, FakePx4, Policy, bridge, hover_output, outputs_const, place_in_air, \
-    serving, wait_for  # fmt: skip
+from hil_support import (
+    ARMED,
+    DISARMED,
+    FakePx4,
+    Policy,
+    bridge,
+    hover_output,
+    outputs_const,
+    place_in_air,
+    serving,
+    wait_for,
+)
 
 from sitl.hil.runner import HilOptions, Sync
 
@@ -140,9 +150,14 @@ def test_garbage_from_px4_is_counted_and_dropped() -> None:
         wait_for(lambda: runner.state == Sync.LOCKSTEP, what="lockstep")
         bad = bytearray(px4.mav.heartbeat_encode(0, 12, 0, 0, 0, 3).pack(px4.mav))
         bad[-1] ^= 0xFF  # wrong CRC
-        px4.sock.sendall(b"\x00\xff\xfe garbage " + bytes(bad) + b"\xfd\x30\x00")
+        px4.sock.sendall(b"\x00\xff\xfe garbage " + bytes(bad))
         t = b.world.t
         wait_for(lambda: b.world.t > t + 0.5, what="lockstep going on")
+        assert runner.counters["lockstep_timeouts"] == 0
+        # A partial frame header swallows the start of the next answer: that step costs one bounded wait.
+        px4.sock.sendall(b"\xfd\x30\x00")
+        t = b.world.t
+        wait_for(lambda: b.world.t > t + 0.5, what="lockstep going on after the lost answer")
         px4.close()
     assert runner.link.counters["rx_bad"] >= 1
-    assert runner.counters["lockstep_timeouts"] == 0
+    assert runner.counters["lockstep_timeouts"] <= 1
