@@ -29,6 +29,7 @@ from sitl.hil.guard import ControlGuard
 from sitl.hil.motors import MotorMap
 from sitl.hil.summary import TruthScore
 from sitl.scenario import Scenario
+from sitl.world.kernel import T_POS, T_TIME, T_WIND
 from sitl.world.plume.part import CHEM_OUTPUT
 from sitl.world.world import World
 
@@ -79,6 +80,7 @@ class HilBridge:
         self.unix0_us = int(time.time() * 1e6)  # HIL_GPS carries UNIX time (not part of the physics)
         self.state_interval_s = 1.0 / STATE_RATE_HZ
         self.truth = TruthScore(rate_hz=sc.mode_rate_hz)
+        self._truth_every = max(1, round(1.0 / (sc.mode_rate_hz * self.imu_period_s)))  # steps per truth sample
         self.steps = 0
         self._next_state = 0.0
         self._next_truth = 0.0
@@ -111,18 +113,21 @@ class HilBridge:
         """Advance one IMU period and return the messages it produced."""
         w = self.world
         self.guard.before_step()
-        w.step(self.imu_div, self.guard.pilot, self._on_slow_tick)
+        w.step(self.imu_div, self.guard.pilot)
         self.steps += 1
         s = w.drain()
         out = StepOutput()
         sc = self.scenario
         for g in s["gnss"]:
             out.to_px4.append(hm.hil_gps(g, sc.sensors.gnss, self.unix0_us))
-        t0 = w.t - self.imu_period_s
+        # The truth at the step's IMU sample instant (t0): the same instant as its HIL_SENSOR.
+        row = w.last_truth
+        t0 = float(row[T_TIME])
         if t0 >= self._next_state - 1e-9:
             self._next_state = max(self._next_state + self.state_interval_s, t0)
-            out.to_px4.append(hm.hil_state_quaternion(t0, w.phys.x, w.specific_force, w.wind_at_vehicle,
-                                                      sc.sensors.home))  # fmt: skip
+            out.to_px4.append(hm.hil_state_quaternion(row, sc.sensors.home))
+        if self.steps % self._truth_every == 0:
+            self.truth.add(t0, row[T_POS], row[T_WIND])
         mag_new, baro_new = bool(s["mag"]), bool(s["baro"])
         if mag_new:
             self._mag = s["mag"][-1]
@@ -138,12 +143,8 @@ class HilBridge:
             out.to_companion.append(hm.named_value(r.t, "CHEM", r.value_mg_m3))
         if t0 >= self._next_truth - 1e-9:
             self._next_truth += 1.0 / TRUE_WIND_HZ
-            out.to_companion.extend(hm.true_wind(t0, w.wind_at_vehicle))
+            out.to_companion.extend(hm.true_wind(t0, row[T_WIND]))
         return out
-
-    def _on_slow_tick(self) -> None:
-        w = self.world
-        self.truth.add(w.t, w.phys.x[0:3], w.wind_at_vehicle)
 
     def summary(self) -> dict[str, Any]:
         """The run's figures against the truth (see :class:`~sitl.hil.summary.TruthScore`) and the final state."""

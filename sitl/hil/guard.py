@@ -102,7 +102,9 @@ class ControlGuard:
             if not v.armed and self.airborne and self.safety is None:
                 self._engage("PX4 came back disarmed with the vehicle in the air (a reboot?)")
         if self.safety is None:
-            self.command.set(v.speeds)
+            # MotorMap.check validated them (finite, in [0, omega_max]): RotorCommand.set's own checks
+            # would only repeat that, once per lockstep step.
+            self.command.speeds[:] = v.speeds
         return True
 
     def on_reconnect(self) -> None:

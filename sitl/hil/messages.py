@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from sitl.world.kernel import T_POS, T_QUAT, T_RATES, T_SPECIFIC_FORCE, T_TIME, T_VEL, T_WIND
 from sitl.world.sensors import BaroSample, GnssConfig, GnssSample, HomeConfig, MagSample, ned_to_geodetic
 from wire.dialect import mavlink
 
@@ -86,19 +87,19 @@ def hil_gps(g: GnssSample, cfg: GnssConfig, unix0_us: int) -> Any:
     )  # fmt: skip
 
 
-def hil_state_quaternion(t: float, x: np.ndarray, specific_force: np.ndarray, wind: np.ndarray,
-                         home: HomeConfig) -> Any:  # fmt: skip
-    """Ground truth at ``t``: state ``x`` (position NED, velocity NED, quaternion, rates FRD), the
-    specific force (FRD, m/s^2) and the wind (air-mass velocity NED, m/s) at the vehicle."""
-    lat, lon, alt = ned_to_geodetic(x[0:3], home)
-    air = float(np.linalg.norm(x[3:6] - wind))
+def hil_state_quaternion(row: np.ndarray, home: HomeConfig) -> Any:
+    """Ground truth from a truth row of the world (:mod:`sitl.world.kernel`: time, specific force FRD,
+    rates FRD, position NED, velocity NED, attitude, wind NED, all at one IMU sample instant)."""
+    lat, lon, alt = ned_to_geodetic(row[T_POS], home)
+    v = row[T_VEL]
+    air = float(np.linalg.norm(v - row[T_WIND]))
     air_cm = max(0, min(65535, int(round(air * 100))))
-    mg = 1000.0 / G0
+    f = row[T_SPECIFIC_FORCE] * (1000.0 / G0)  # mG
+    r = row[T_RATES]
     return mavlink.MAVLink_hil_state_quaternion_message(
-        hil_time_us(t), [float(q) for q in x[6:10]], float(x[10]), float(x[11]), float(x[12]),
+        hil_time_us(float(row[T_TIME])), [float(q) for q in row[T_QUAT]], float(r[0]), float(r[1]), float(r[2]),
         int(round(lat * 1e7)), int(round(lon * 1e7)), int(round(alt * 1000)),
-        _i16(x[3] * 100), _i16(x[4] * 100), _i16(x[5] * 100), air_cm, air_cm,
-        _i16(specific_force[0] * mg), _i16(specific_force[1] * mg), _i16(specific_force[2] * mg),
+        _i16(v[0] * 100), _i16(v[1] * 100), _i16(v[2] * 100), air_cm, air_cm, _i16(f[0]), _i16(f[1]), _i16(f[2]),
     )  # fmt: skip
 
 

@@ -109,6 +109,7 @@ class MotorMap:
     def __init__(self, vehicle: VehicleParams) -> None:
         self.omega_max = float(vehicle.rotor_speed_max_rad_s)
         self._order = np.array(PX4_TO_ROTOR)
+        self._order_list = list(PX4_TO_ROTOR)
 
     def speeds(self, outputs: np.ndarray) -> np.ndarray:
         """Rotor speed commands (rad/s, windseek order) of PX4 motor outputs 1-4 in [0, 1]."""
@@ -125,26 +126,32 @@ class MotorMap:
 
         Refused: a wrong length, NaN or infinite values, motor outputs outside [0, 1], and any of
         outputs 5-16 driven while armed (an airframe with more motors or servos than this quad).
-        Disarmed, PX4 sends zeros: the rotors stop.
+        Disarmed, PX4 sends zeros: the rotors stop. Plain Python on purpose: this runs once per
+        lockstep step, and numpy's call overhead on 16 numbers is several times the work.
         """
         armed = bool(int(mode) & MODE_ARMED)
         try:
-            c = np.asarray(controls, dtype=float)
+            c = list(map(float, controls))  # type: ignore[call-overload]
         except (TypeError, ValueError):
-            return Verdict(None, armed, "bad_length", "controls is not an array of numbers")
-        if c.shape != (N_OUTPUTS,):
-            return Verdict(None, armed, "bad_length", f"expected {N_OUTPUTS} outputs, got shape {c.shape}")
-        if not np.all(np.isfinite(c)):
-            bad = [i + 1 for i in np.flatnonzero(~np.isfinite(c))]
+            return Verdict(None, armed, "bad_length", "controls is not a sequence of numbers")
+        if len(c) != N_OUTPUTS:
+            return Verdict(None, armed, "bad_length", f"expected {N_OUTPUTS} outputs, got {len(c)}")
+        if not all(map(math.isfinite, c)):
+            bad = [i + 1 for i, v in enumerate(c) if not math.isfinite(v)]
             return Verdict(None, armed, "non_finite", f"NaN or infinite value on output(s) {bad}")
         m = c[:N_MOTORS]
-        if np.any(m < -RANGE_TOL) or np.any(m > 1.0 + RANGE_TOL):
-            return Verdict(None, armed, "out_of_range",
-                           f"motor outputs {np.round(m, 3).tolist()} outside [0, 1]")  # fmt: skip
-        extra = np.flatnonzero(np.abs(c[N_MOTORS:]) > RANGE_TOL)
-        if armed and extra.size:
-            outs = ", ".join(str(i + N_MOTORS + 1) for i in extra)
+        if min(m) < -RANGE_TOL or max(m) > 1.0 + RANGE_TOL:
+            return Verdict(None, armed, "out_of_range", f"motor outputs {[round(v, 3) for v in m]} outside [0, 1]")
+        if armed and max(map(abs, c[N_MOTORS:])) > RANGE_TOL:
+            outs = ", ".join(str(i + 1) for i, v in enumerate(c) if i >= N_MOTORS and abs(v) > RANGE_TOL)
             return Verdict(None, armed, "wrong_airframe",
                            f"PX4 drives output(s) {outs}; windseek's vehicle is a quad X on outputs 1-4 (load "
                            "sitl/px4/windseek_nasa_quad.params: CA_ROTOR_COUNT 4, outputs 1-4 = motors)")  # fmt: skip
-        return Verdict(self.speeds(m) if armed else np.zeros(N_MOTORS), armed)
+        if not armed:
+            return Verdict(np.zeros(N_MOTORS), armed)
+        w = self.omega_max
+        o = self._order_list
+        speeds = [0.0] * N_MOTORS
+        for i in range(N_MOTORS):
+            speeds[o[i]] = w * min(max(m[i], 0.0), 1.0)
+        return Verdict(np.array(speeds), armed)

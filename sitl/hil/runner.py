@@ -92,6 +92,8 @@ class HilRunner:
         #: Wall seconds of lockstep spent in windseek (world step, messages, sending) and waiting for PX4.
         self.world_wall_s = 0.0
         self.px4_wall_s = 0.0
+        #: CPU seconds of this process in lockstep (the machine's load does not inflate it).
+        self.world_cpu_s = 0.0
         self._stop = threading.Event()
         self._connected_once = False
         self._frozen = False
@@ -161,13 +163,14 @@ class HilRunner:
 
     def _lockstep_step(self) -> None:
         b = self.bridge
-        w0 = time.monotonic()
+        w0, c0 = time.monotonic(), time.process_time()
         out = b.step()
         self._send(out)
         w1 = time.monotonic()
         if out.t_us:
             self._await(out.t_us)
         w2 = time.monotonic()
+        self.world_cpu_s += time.process_time() - c0
         self.world_wall_s += w1 - w0
         self.px4_wall_s += w2 - w1
         self.lockstep_sim_s += b.imu_period_s
@@ -301,6 +304,9 @@ class HilRunner:
         n = max(1, round(self.lockstep_sim_s / self.bridge.imu_period_s))
         d["lockstep_us_per_step_windseek"] = round(1e6 * self.world_wall_s / n, 1)
         d["lockstep_us_per_step_px4"] = round(1e6 * self.px4_wall_s / n, 1)
+        d["lockstep_cpu_us_per_step_windseek"] = round(1e6 * self.world_cpu_s / n, 1)
+        for k in ("answers", "lockstep_timeouts", "disconnects", "reconnects", "freezes", "overruns"):
+            d[k] = int(self.counters.get(k, 0))
         d.update({k: int(v) for k, v in self.counters.items()})
         d.update({f"link_{k}": int(v) for k, v in self.link.counters.items()})
         if self.peripheral is not None:
