@@ -67,4 +67,5 @@ class MissionResult:
 
     def to_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        return json_safe(d)  # type: ignore[no-any-return]
+        out: dict[str, Any] = json_safe(d)
+        return out

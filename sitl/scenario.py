@@ -144,7 +144,7 @@ def _parse_wind(tbl: dict[str, Any]) -> SteadyWind:
     profile = tbl.get("profile", "uniform")
     if profile not in ("uniform", "log"):
         raise ScenarioError(f"wind.profile = {profile!r}: allowed values are 'uniform', 'log'")
-    kw = {
+    kw: dict[str, Any] = {
         "profile": profile,
         "reference_height_m": number("wind.reference_height_m", tbl.get("reference_height_m", 10.0), 0.1, 1000.0),
         "roughness_length_m": number("wind.roughness_length_m", tbl.get("roughness_length_m", 0.1), 1e-4, 5.0),
@@ -206,7 +206,7 @@ def _parse_turbulence(tbl: dict[str, Any], wind: SteadyWind, duration: float) ->
             f"intensity, intensity_class ('A', 'B', 'C'); got {given or 'none'}"
         )
     u_mean = math.hypot(wind.velocity_ned[0], wind.velocity_ned[1])
-    kw = {
+    kw: dict[str, Any] = {
         "height_m": number("turbulence.height_m", tbl.get("height_m", 10.0), 0.5, 500.0),
         "taylor": boolean("turbulence.taylor", tbl.get("taylor", True)),
         "sample_rate_hz": number("turbulence.sample_rate_hz", tbl.get("sample_rate_hz", 50.0), 1.0, 1000.0),
@@ -293,6 +293,38 @@ def _parse_route(tbl: dict[str, Any] | None) -> Route:
     )
 
 
+def _parse_start(tbl: Any) -> Start:
+    st = table("start", tbl, {"position_ned", "yaw_deg", "airborne"})
+    start = Start(
+        vec3("start.position_ned", st.get("position_ned", [0.0, 0.0, 0.0])),
+        number("start.yaw_deg", st.get("yaw_deg", 0.0), -360.0, 360.0),
+        boolean("start.airborne", st.get("airborne", False)),
+    )
+    if start.airborne and start.position_ned[2] >= -0.5:
+        raise ScenarioError("start.position_ned[2]: an airborne start needs an altitude (z <= -0.5 m, NED)")
+    if not start.airborne and start.position_ned[2] != 0.0:
+        raise ScenarioError("start.position_ned[2]: a ground start must have z = 0 (set airborne = true)")
+    return start
+
+
+def _parse_sensors(tbl: Any, physics_rate_hz: float) -> SensorSuiteConfig:
+    sens = table("sensors", tbl, {"imu", "esc", "gnss", "baro", "mag", "temperature", "home"})
+    sensors = SensorSuiteConfig(
+        imu=_parse_dataclass("sensors.imu", ImuConfig, sens.get("imu")),
+        esc=_parse_dataclass("sensors.esc", EscConfig, sens.get("esc")),
+        gnss=_parse_dataclass("sensors.gnss", GnssConfig, sens.get("gnss")),
+        baro=_parse_dataclass("sensors.baro", BaroConfig, sens.get("baro")),
+        mag=_parse_dataclass("sensors.mag", MagConfig, sens.get("mag")),
+        temperature=_parse_dataclass("sensors.temperature", TemperatureConfig, sens.get("temperature")),
+        home=_parse_dataclass("sensors.home", HomeConfig, sens.get("home")),
+    )
+    try:
+        sensors.validate(physics_rate_hz)
+    except ValueError as e:
+        raise ScenarioError(str(e)) from None
+    return sensors
+
+
 TOP_KEYS = {
     "name", "description", "duration_s", "seed", "vehicle", "physics", "wind", "turbulence",
     "start", "route", "sensors", "controller", "flight", "plume",
@@ -318,30 +350,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         raise ScenarioError(f"physics.mode_rate_hz = {mode_rate}: must divide physics.rate_hz = {rate}")
     wind = _parse_wind(data.get("wind", {"velocity_ned": [0.0, 0.0, 0.0]}))
     turb = _parse_turbulence(data.get("turbulence", {"model": "none"}), wind, duration)
-    st = table("start", data.get("start", {}), {"position_ned", "yaw_deg", "airborne"})
-    start = Start(
-        vec3("start.position_ned", st.get("position_ned", [0.0, 0.0, 0.0])),
-        number("start.yaw_deg", st.get("yaw_deg", 0.0), -360.0, 360.0),
-        boolean("start.airborne", st.get("airborne", False)),
-    )
-    if start.airborne and start.position_ned[2] >= -0.5:
-        raise ScenarioError("start.position_ned[2]: an airborne start needs an altitude (z <= -0.5 m, NED)")
-    if not start.airborne and start.position_ned[2] != 0.0:
-        raise ScenarioError("start.position_ned[2]: a ground start must have z = 0 (set airborne = true)")
-    sens = table("sensors", data.get("sensors", {}), {"imu", "esc", "gnss", "baro", "mag", "temperature", "home"})
-    sensors = SensorSuiteConfig(
-        imu=_parse_dataclass("sensors.imu", ImuConfig, sens.get("imu")),
-        esc=_parse_dataclass("sensors.esc", EscConfig, sens.get("esc")),
-        gnss=_parse_dataclass("sensors.gnss", GnssConfig, sens.get("gnss")),
-        baro=_parse_dataclass("sensors.baro", BaroConfig, sens.get("baro")),
-        mag=_parse_dataclass("sensors.mag", MagConfig, sens.get("mag")),
-        temperature=_parse_dataclass("sensors.temperature", TemperatureConfig, sens.get("temperature")),
-        home=_parse_dataclass("sensors.home", HomeConfig, sens.get("home")),
-    )
-    try:
-        sensors.validate(rate)
-    except ValueError as e:
-        raise ScenarioError(str(e)) from None
+    start = _parse_start(data.get("start", {}))
+    sensors = _parse_sensors(data.get("sensors", {}), rate)
     gains = _parse_dataclass(
         "controller", ControllerGains, data.get("controller"),
         angle_fields=("tilt_max", "rate_max_rp", "rate_max_yaw"),

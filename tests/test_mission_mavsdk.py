@@ -36,6 +36,8 @@ from wire.dialect import mavlink as mav
 from wire.names import STATE_PREFIX
 from wire.px4_modes import name as px4_mode_name
 
+pytestmark = pytest.mark.e2e
+
 pytest.importorskip("mavsdk")
 
 ROOT = Path(__file__).resolve().parents[1]

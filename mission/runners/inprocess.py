@@ -170,7 +170,7 @@ def run_trial(
         scenario=sc.name, strategy=strategy, wind=wind, seed=seed, success=success,
         declared_ned=res.declared_ned, confidence=res.confidence, error_m=err, time_s=t_declared, path_m=path,
         start_distance_m=start_dist, cause=cause, end_state=res.state,
-        n_detections=strat.memory.n_detect, hit_rate_at_last=round(strat.memory.hit_rate_at_last, 3),
+        n_detections=_memory(strat)[0], hit_rate_at_last=round(_memory(strat)[1], 3),
         diag=getattr(strat, "diag", {}), wall_s=time.perf_counter() - wall0, track=score.track,
         reach_path_m=score.reach_path,
         verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
@@ -205,6 +205,15 @@ class _Scorer:
         """The track, once per second from the first tick (take-off included)."""
         if self.keep_track and round(t * self.every) % self.every == 0:
             self.track.append([round(t, 2), *(round(float(v), 2) for v in self.sim.position)])
+
+
+def _memory(strat: object) -> tuple[int, float]:
+    """(detections, hit rate at the last candidate) of a strategy that keeps a detection memory
+    (the bio-inspired ones do; the Strategy interface does not require it): (0, nan) otherwise."""
+    mem = getattr(strat, "memory", None)
+    if mem is None:
+        return 0, math.nan
+    return int(mem.n_detect), float(mem.hit_rate_at_last)
 
 
 def _verification_records(strat: object, src: np.ndarray, t_end: float, path_t: list[float], path_m: list[float]

@@ -138,7 +138,7 @@ class EstimatedLiveWind:
         else:
             self.adapter.handle(_Msg(name, fields))
         est_t = self.estimator.t
-        while pend and (est_t is None or pend[0].time_boot_ms * 1e-3 <= est_t + 1e-9
+        while pend and (est_t is None or float(getattr(pend[0], "time_boot_ms", 0)) * 1e-3 <= est_t + 1e-9
                         or len(pend) > 30):  # no IMU flowing (1 s at 30 Hz): do not hold velocities forever
             self.adapter.handle(pend.pop(0))
 
@@ -190,7 +190,7 @@ class WindCovWind:
 
     def _latest(self, t: float) -> tuple[float, np.ndarray, np.ndarray] | None:
         wc = self.vehicle.wind_cov
-        return None if wc is None or t - wc[0] > 5.0 else wc  # type: ignore[no-any-return]
+        return None if wc is None or t - wc[0] > 5.0 else wc
 
     def info(self, t: float) -> WindInfo:
         wc = self._latest(t)

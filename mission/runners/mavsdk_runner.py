@@ -39,14 +39,14 @@ from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
 from mission.safety import SafetyLimits
 from mission.strategies import make_strategy
 from mission.strategies.params import CommonParams, load_params
+from mission.wind_modes import LIVE_WIND_MODES
 from mission.wind_source import UpwindFilter
 from vehicle.params import load_vehicle
 
-WIND_MODES = ("estimated", "mavlink", "none")
 #: PX4's data-link-loss action parameter (INT32 on PX4) and the value the runner needs: land.
 DLL_PARAM, DLL_LAND = "NAV_DLL_ACT", 3
 
-__all__ = ["WIND_MODES", "MissionConfig", "MissionError", "MissionResult", "run_mission"]
+__all__ = ["MissionConfig", "MissionError", "MissionResult", "run_mission"]
 
 
 @dataclass
@@ -92,8 +92,8 @@ class MissionConfig:
 async def run_mission(cfg: MissionConfig) -> MissionResult:
     """Fly one search mission through MAVSDK; see the module docstring. Raises :class:`MissionError`
     when it cannot start; safety stops are not errors (``result.cause`` says why)."""
-    if cfg.wind not in WIND_MODES:
-        raise ValueError(f"wind mode {cfg.wind!r}: choose one of {', '.join(WIND_MODES)}")
+    if cfg.wind not in LIVE_WIND_MODES:
+        raise ValueError(f"wind mode {cfg.wind!r}: choose one of {', '.join(LIVE_WIND_MODES)}")
     cfg.limits.validate()
     params = cfg.params if cfg.params is not None else load_params(cfg.strategy)
     if cfg.altitude_m is not None:

@@ -229,10 +229,11 @@ class FlightController(MissionExecution):
             return True, "offboard"
         if mode == Mode.TAKEOFF:
             return self.takeoff()
-        if mode == Mode.LAND:
-            return self.land() if self.armed else (self._set_mode(Mode.LAND) or (True, "land"))
-        if mode == Mode.RTL:
-            return self.rtl() if self.armed else (self._set_mode(Mode.RTL) or (True, "rtl"))
+        if mode in (Mode.LAND, Mode.RTL):
+            if self.armed:
+                return self.land() if mode == Mode.LAND else self.rtl()
+            self._set_mode(mode)
+            return True, "land" if mode == Mode.LAND else "rtl"
         if mode == Mode.MISSION:
             if not self.armed:
                 self._set_mode(Mode.MISSION)
@@ -246,6 +247,33 @@ class FlightController(MissionExecution):
     # ------------------------------------------------------------------ update
     def update(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool, dt: float) -> np.ndarray:
         """Advance the mode logic to time t with the true state; returns the setpoint vector."""
+        self._observe(t, x, on_ground, crashed)
+        sp = self.sp
+        if not self.armed:
+            return self._disarmed_sp(on_ground)
+        if self.mode == Mode.OFFBOARD:
+            if not self.offboard_active(t):
+                self.say("Offboard setpoint stream lost: switching to Hold", 4)
+                self._enter_hold()
+            else:
+                sp[:] = self._offb_sp
+                self._traj.reset(self._pos)
+                self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+                if on_ground and int(sp[SP_FLAGS]) & (F_POS | F_VEL) and not self._wants_climb(sp):
+                    sp[SP_FLAGS] = F_IDLE
+                return sp
+        speed = self._step_mode(t)
+        if not self.armed:  # landed and disarmed in this step
+            sp[:] = 0.0
+            sp[SP_FLAGS] = F_OFF
+            return sp
+        if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
+            return self._descend_sp(on_ground)
+        q = x[6:10]
+        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
+        return self._trajectory_sp(dt, speed, on_ground, cur_yaw)
+
+    def _observe(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool) -> None:
         self._t = t
         self._pos = x[0:3].copy()
         self._vel = x[3:6].copy()
@@ -257,56 +285,45 @@ class FlightController(MissionExecution):
             self.failsafe = True
             self.say("Crash detected: motors stopped", 0)
             self.armed = False
-        q = x[6:10]
-        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
-        sp = self.sp
-        if not self.armed:
-            sp[:] = 0.0
-            sp[SP_FLAGS] = F_OFF
-            self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
-            return sp
-        cfg = self.config
-        mode = self.mode
-        if mode == Mode.OFFBOARD:
-            if not self.offboard_active(t):
-                self.say("Offboard setpoint stream lost: switching to Hold", 4)
-                self._enter_hold()
-            else:
-                sp[:] = self._offb_sp
-                self._traj.reset(self._pos)
-                self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
-                if on_ground and int(sp[SP_FLAGS]) & (F_POS | F_VEL) and not self._wants_climb(sp):
-                    sp[SP_FLAGS] = F_IDLE
-                return sp
-        mode = self.mode
+
+    def _disarmed_sp(self, on_ground: bool) -> np.ndarray:
+        self.sp[:] = 0.0
+        self.sp[SP_FLAGS] = F_OFF
+        self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+        return self.sp
+
+    def _step_mode(self, t: float) -> float:
+        """The mode's own logic for this step; returns the speed the trajectory may use (m/s)."""
         speed = self._speed
-        if mode == Mode.TAKEOFF:
-            speed = cfg.takeoff_speed_m_s
+        if self.mode == Mode.TAKEOFF:
+            speed = self.config.takeoff_speed_m_s
             if abs(self._pos[2] - self._takeoff_target[2]) < 0.3:
                 self.say("Takeoff complete")
                 self._enter_hold()
-        elif mode == Mode.LAND:
+        elif self.mode == Mode.LAND:
             self._land_step(t)
-        elif mode == Mode.RTL:
+        elif self.mode == Mode.RTL:
             self._rtl_step(t)
-        elif mode == Mode.MISSION:
+        elif self.mode == Mode.MISSION:
             speed = self._mission_step(t)
-        if not self.armed:
-            sp[:] = 0.0
-            sp[SP_FLAGS] = F_OFF
-            return sp
-        if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
-            sp[:] = 0.0
-            sp[SP_POS:SP_POS + 3] = self._traj.pos
-            sp[SP_VEL + 2] = cfg.land_speed_m_s
-            sp[SP_YAW] = self._yaw
-            sp[SP_FLAGS] = F_POS | F_VEL | F_YAW
-            # Only the horizontal position is held: zero the vertical position error.
-            sp[SP_POS + 2] = self._pos[2]
-            self.landed_state = LandedState.LANDING if not on_ground else LandedState.ON_GROUND
-            return sp
         if self.mode == Mode.TAKEOFF:
-            speed = cfg.takeoff_speed_m_s
+            speed = self.config.takeoff_speed_m_s
+        return speed
+
+    def _descend_sp(self, on_ground: bool) -> np.ndarray:
+        sp = self.sp
+        sp[:] = 0.0
+        sp[SP_POS:SP_POS + 3] = self._traj.pos
+        sp[SP_VEL + 2] = self.config.land_speed_m_s
+        sp[SP_YAW] = self._yaw
+        sp[SP_FLAGS] = F_POS | F_VEL | F_YAW
+        # Only the horizontal position is held: zero the vertical position error.
+        sp[SP_POS + 2] = self._pos[2]
+        self.landed_state = LandedState.LANDING if not on_ground else LandedState.ON_GROUND
+        return sp
+
+    def _trajectory_sp(self, dt: float, speed: float, on_ground: bool, cur_yaw: float) -> np.ndarray:
+        cfg, sp = self.config, self.sp
         self._traj.update(dt, speed, cfg.max_accel_m_s2, self._pos, cfg.max_lead_m)
         sp[:] = 0.0
         sp[SP_POS:SP_POS + 3] = self._traj.pos

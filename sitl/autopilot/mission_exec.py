@@ -36,6 +36,18 @@ class MissionExecution:
     _speed: float
     _yaw: float
 
+    if TYPE_CHECKING:  # the mode machinery of FlightController this part calls
+
+        def _set_mode(self, mode: Mode) -> None: ...
+
+        def _begin_land(self) -> None: ...
+
+        def _enter_hold(self, mode: Mode = ...) -> None: ...
+
+        def rtl(self) -> tuple[bool, str]: ...
+
+        def say(self, text: str, severity: int = 6) -> None: ...
+
     def set_mission(self, items: list[MissionItem]) -> None:
         self.mission = list(items)
         self.mission_index = 0
@@ -108,14 +120,11 @@ class MissionExecution:
                 self.mission_index += 1
                 self._begin_land()
             return speed
-        reached = np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3)
-        reached = reached and np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3
+        reached = bool(np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3))
+        reached = reached and bool(np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3)
         if item.kind == ItemKind.TAKEOFF:
-            reached = (
-                abs(self._pos[2] - self._traj.target[2]) < 0.3
-                and abs(self._vel[2]) < 0.5
-                and not self._on_ground
-            )
+            reached = bool(abs(self._pos[2] - self._traj.target[2]) < 0.3 and abs(self._vel[2]) < 0.5
+                           and not self._on_ground)  # fmt: skip
         if reached:
             hold = item.hold_s
             if not math.isfinite(self._hold_until):

@@ -52,7 +52,7 @@ def gaussian_plume_concentration(
     stability: str = "D",
     source_radius_m: float = 0.3,
     min_wind_speed_m_s: float = 0.5,
-) -> np.ndarray:
+) -> np.ndarray | float:
     """Steady Gaussian plume concentration [mg/m^3] with ground reflection.
 
     points_ned: (N,3) or (3,) query points, NED [m].
@@ -108,7 +108,7 @@ class GaussianPlume:
     """
 
     def __init__(
-        self, config: PlumeConfig, wind: WindLike, seed: int | None = None, t0: float = 0.0
+        self, config: PlumeConfig, wind: WindLike, seed: int | np.random.SeedSequence | None = None, t0: float = 0.0
     ):
         """config: validated PlumeConfig; wind: wind model; seed: unused (deterministic
         model), accepted for a uniform factory signature; t0: initial time [s]."""

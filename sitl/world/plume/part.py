@@ -79,7 +79,7 @@ class PlumePart:
         if k % self._plume_every == 0 and t > self.model.t:
             self.model.step(self.model.t, t - self.model.t)
         if k % self._sensor_every == 0:
-            reading = self.sensor.sample(t, self.model.concentration(pos_ned))
+            reading = self.sensor.sample(t, float(self.model.concentration(pos_ned)))
             self.latest = reading
             self.readings.append(reading)
             self.n_samples += 1

@@ -138,10 +138,10 @@ class PuffPlume:
             frozen_turbulence_variances(wind) if config.subtract_wind_turbulence else (0.0, 0.0)
         )
         if config.domain_min_ned is not None:
-            self._dom_lo = np.asarray(config.domain_min_ned, dtype=float)
-            self._dom_hi = np.asarray(config.domain_max_ned, dtype=float)
+            self._dom_lo: np.ndarray | None = np.asarray(config.domain_min_ned, dtype=float)
+            self._dom_hi: np.ndarray | None = np.asarray(config.domain_max_ned, dtype=float)
         else:
-            self._dom_lo = self._dom_hi = None
+            self._dom_lo = self._dom_hi = None  # no domain: puffs are kept wherever they go
         self._pos = np.zeros((0, 3))  # x, y NED, unfolded altitude (up) [m]
         self._r2 = np.zeros(0)
         self._mass = np.zeros(0)
@@ -258,7 +258,7 @@ class PuffPlume:
         self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
         self._substep_count += 1
 
-    def _keep(self, mask: np.ndarray) -> None:
+    def _keep(self, mask: np.ndarray | slice) -> None:
         self._pos = self._pos[mask]
         self._r2 = self._r2[mask]
         self._mass = self._mass[mask]

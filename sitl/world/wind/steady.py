@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -120,7 +121,7 @@ class SteadyWind:
 
     @classmethod
     def from_speed_direction(
-        cls, speed_ms: float, from_deg: float, vertical_ms: float = 0.0, **kwargs: object
+        cls, speed_ms: float, from_deg: float, vertical_ms: float = 0.0, **kwargs: Any
     ) -> SteadyWind:
         """Constant wind of ``speed_ms`` (m/s) from ``from_deg`` (deg); kwargs go to the class."""
         return cls(velocity_from_speed_direction(speed_ms, from_deg, vertical_ms), **kwargs)
@@ -131,7 +132,7 @@ class SteadyWind:
         speed_ms: float,
         from_degs: Sequence[float],
         interval_s: float,
-        **kwargs: object,
+        **kwargs: Any,
     ) -> SteadyWind:
         """Constant speed, new from-direction every ``interval_s`` s (anemotaxis scenarios).
 
