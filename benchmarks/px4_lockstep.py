@@ -3,7 +3,7 @@
 Two runs, one after the other, each with PX4 hovering at 10 m after an arm + take-off through
 pymavlink on its API link:
 
-1. ``windseek sitl open-field --px4 --speed 0`` (lockstep as fast as PX4 answers: one TCP round
+1. ``windseek sitl open-field --px4 --px4-free`` (lockstep as fast as PX4 answers: one TCP round
    trip per 4 ms step) + PX4 SITL airframe 10016 with windseek's parameters, no flight log;
 2. the peer: PX4 SITL airframe 10040 (SIH, PX4's own quad physics inside the PX4 process, same
    250 Hz lockstep step) with ``PX4_SIM_SPEED_FACTOR=1000`` (as fast as PX4 runs), no flight log.
@@ -30,6 +30,9 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
+from windseek import numba_cache  # noqa: E402 - before any kernel module
+
+numba_cache.configure()
 from sitl.hil.px4_params import px4_env  # noqa: E402
 from sitl.hil.px4_process import Px4Sitl, free_instance, ports, px4_binary  # noqa: E402
 
@@ -111,7 +114,7 @@ def run_windseek(binary: Path, seconds: float, tmp: Path) -> dict[str, Any]:
     p = ports(n)
     log = open(tmp / "windseek.log", "wb")  # noqa: SIM115 - closed below
     ws = subprocess.Popen([sys.executable, "-m", "windseek.cli", "sitl", "open-field", "--px4", "--px4-port",
-                           str(p["sim"]), "--speed", "0"], cwd=REPO, stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
+                           str(p["sim"]), "--px4-free"], cwd=REPO, stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
     px4 = Px4Sitl(binary, n, tmp / "px4-hil", tmp / "px4-hil.log", speed=20.0).start()
     try:
         assert px4.proc is not None

@@ -1,6 +1,6 @@
 """Source search flown by PX4 in windseek's world: success, path ratio, declared error, wind RMSE.
 
-Per seed, four processes as on a real vehicle: ``windseek sitl SCENARIO --px4 --seed S --speed 0``
+Per seed, four processes as on a real vehicle: ``windseek sitl SCENARIO --px4 --seed S --px4-free``
 (PX4's simulator, lockstep as fast as PX4 answers), PX4 SITL (airframe 10016 with windseek's
 parameters, ``sitl/px4/windseek_nasa_quad.params``; a fresh instance and working directory),
 ``windseek estimator`` on PX4's ground-station link (WIND_COV back through PX4's forwarding) and
@@ -36,6 +36,9 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
+from windseek import numba_cache  # noqa: E402 - before any kernel module
+
+numba_cache.configure()
 from sitl.hil.px4_process import Px4Sitl, free_instance, ports, px4_binary  # noqa: E402
 
 FOUND_M = 5.0
@@ -56,11 +59,17 @@ def _stop(p: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
 
 
 def _json(path: Path) -> dict[str, Any]:
+    """A JSON file (an indented object), or the last line of a program's output; {} if none."""
     try:
-        text = path.read_text().strip().splitlines()
-        return json.loads(text[-1]) if text else {}
-    except (OSError, ValueError):
+        text = path.read_text().strip()
+    except OSError:
         return {}
+    for candidate in (text, text.splitlines()[-1] if text else ""):
+        try:
+            return dict(json.loads(candidate))
+        except ValueError:
+            continue
+    return {}
 
 
 def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[str, Any]:
@@ -72,7 +81,7 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
     with contextlib.ExitStack() as stack:
         f = {k: stack.enter_context(open(out / k, "wb")) for k in
              ("windseek.log", "estimator.log", "estimator.json", "mission.log", "mission.json")}  # fmt: skip
-        ws = subprocess.Popen(_cli("sitl", args.scenario, "--px4", "--px4-port", str(p["sim"]), "--speed", "0",
+        ws = subprocess.Popen(_cli("sitl", args.scenario, "--px4", "--px4-port", str(p["sim"]), "--px4-free",
                                    "--seed", str(seed), "--exit-summary", str(out / "windseek.json")),
                               cwd=REPO, stdout=f["windseek.log"], stderr=subprocess.STDOUT, env=env)  # fmt: skip
         px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0).start()
@@ -90,6 +99,13 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
         _stop(est)
         _stop(ws)
         px4.stop()
+    r = collect(seed, out)
+    r["wall_s"] = round(wall, 1)
+    return r
+
+
+def collect(seed: int, out: Path) -> dict[str, Any]:
+    """One seed's figures from the files a trial left in ``out``."""
     m, s = _json(out / "mission.json"), _json(out / "windseek.json")
     src = np.array(s.get("true_sources_ned_m") or [[math.nan] * 3])[0]
     home = np.array(m.get("home_ned") or [0.0, 0.0, 0.0])
@@ -102,7 +118,7 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
             else None, "time_s": m.get("time_s"), "rmse_ned": s.get("wind_rmse_ned_m_s"),
             "rmse_h": s.get("wind_rmse_horizontal_m_s"), "scored": s.get("wind_estimates_scored", 0),
             "lockstep_speed": s.get("lockstep_speed"), "timeouts": s.get("lockstep_timeouts"),
-            "crashed": s.get("crashed"), "wall_s": round(wall, 1)}  # fmt: skip
+            "crashed": s.get("crashed")}  # fmt: skip
 
 
 def _seeds(text: str) -> list[int]:
@@ -117,7 +133,15 @@ def main() -> int:
     ap.add_argument("--strategy", default="surge-cast")
     ap.add_argument("--wall-limit", type=float, default=900.0, help="wall seconds per mission")
     ap.add_argument("--keep", default=None, help="keep every run's logs under this directory")
+    ap.add_argument("--from", dest="from_dir", default=None, help="do not fly: recompute the figures from the logs "
+                    "a --keep run left in this directory")  # fmt: skip
     args = ap.parse_args()
+    if args.from_dir:
+        rows = [collect(seed, Path(args.from_dir) / f"seed{seed}") for seed in _seeds(args.seeds)]
+        for r in rows:
+            print(json.dumps(r))
+        report(rows)
+        return 0
     binary = px4_binary()
     if binary is None:
         print("set WINDSEEK_PX4_BIN to a PX4 SITL binary (build/px4_sitl_*/bin/px4)", file=sys.stderr)
@@ -130,6 +154,12 @@ def main() -> int:
         r = trial(binary, seed, args, root / f"seed{seed}")
         rows.append(r)
         print(json.dumps(r), flush=True)
+    report(rows)
+    return 0
+
+
+def report(rows: list[dict[str, Any]]) -> None:
+    """The success rate, medians and the pooled wind RMSE of the seeds' rows."""
     found = [r for r in rows if r["found"]]
     n_sc = sum(r["scored"] for r in rows if r["rmse_ned"] and r["rmse_ned"][0] is not None)
     pooled = np.sqrt(sum(r["scored"] * np.square(r["rmse_ned"]) for r in rows if r["scored"] and
@@ -146,7 +176,6 @@ def main() -> int:
     print(f"lockstep speed: median {np.median([r['lockstep_speed'] or 0 for r in rows]):.2f}x; lockstep timeouts: "
           f"{sum(r['timeouts'] or 0 for r in rows)}; crashes: {sum(bool(r['crashed']) for r in rows)}; load "
           f"{os.getloadavg()[0]:.1f}")  # fmt: skip
-    return 0
 
 
 if __name__ == "__main__":

@@ -72,8 +72,9 @@ def px4_with_windseek(tmp: Path, scenario: str = "open-field", speed: float = 0.
     wlog = tmp / "windseek.log"
     ws = None
     if not sih:
-        cmd = [sys.executable, "-m", "windseek.cli", "sitl", scenario, "--px4", "--px4-port", str(p["sim"]),
-               "--speed", str(speed), "--exit-summary", str(summary), *(extra or [])]  # fmt: skip
+        pace = ["--px4-free"] if speed <= 0 else ["--speed", str(speed)]
+        cmd = [sys.executable, "-m", "windseek.cli", "sitl", scenario, "--px4", "--px4-port", str(p["sim"]), *pace,
+               "--exit-summary", str(summary), *(extra or [])]  # fmt: skip
         with open(wlog, "wb") as f:
             ws = subprocess.Popen(cmd, cwd=REPO, stdout=f, stderr=subprocess.STDOUT, env=dict(os.environ))
     px4 = Px4Sitl(binary, n, tmp / "px4", tmp / "px4.log", sih=sih, speed=px4_speed, extra_env=px4_env)

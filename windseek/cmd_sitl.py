@@ -96,8 +96,9 @@ def _add_px4_options(p: argparse.ArgumentParser) -> None:
     """``--px4``: windseek as PX4's simulator (sitl/hil/; README "Pointing it at a real autopilot")."""
     g = p.add_argument_group("PX4 flies (windseek as PX4's simulator, lockstep; see sitl/hil/)")
     g.add_argument("--px4", action="store_true", help="PX4 SITL (TCP) or a flight controller in HITL (serial) flies "
-                   "the scenario's world on windseek's sensors; the built-in autopilot is off. --speed 0 = as fast as "
-                   "PX4 answers")
+                   "the scenario's world on windseek's sensors; the built-in autopilot is off")
+    g.add_argument("--px4-free", action="store_true",
+                   help="lockstep as fast as PX4 answers, instead of at --speed (PX4 SITL only)")
     g.add_argument("--px4-port", default="4560", metavar="[HOST:]PORT",
                    help="TCP port PX4 SITL connects to: 4560 + PX4 instance (default 127.0.0.1:4560)")
     g.add_argument("--px4-serial", metavar="DEV[:BAUD]",

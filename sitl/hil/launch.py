@@ -6,7 +6,7 @@
 - ``--px4-mavlink auto|HOST:PORT|none``: where the peripheral component (CHEM, ESC_STATUS, true
   wind; :mod:`sitl.hil.peripheral`) talks to PX4. ``auto``: SITL's payload link
   127.0.0.1:14280 + instance, or the serial link itself in HITL.
-- ``--speed K``: simulated seconds per wall second in lockstep; ``0`` as fast as PX4 answers.
+- ``--speed K``: simulated seconds per wall second in lockstep; ``--px4-free``: as fast as PX4 answers.
 - ``--px4-timeout S``: wall seconds to wait for a lockstep answer (then it steps on, counted).
 - ``--exit-summary PATH``: the runner's summary as JSON at shutdown (wind RMSE of the forwarded
   WIND_COV, the declaration, counters, lockstep speed); ``--tlog PATH``: every frame both links
@@ -41,7 +41,8 @@ def make_runner(args: argparse.Namespace, say: Any) -> HilRunner:
     if given:
         raise ValueError(f"{', '.join(given)}: not with --px4 (PX4 is the autopilot: connect MAVSDK, QGroundControl "
                          "and windseek mission/estimator to PX4's MAVLink ports)")  # fmt: skip
-    opts = HilOptions(speed=float(args.speed), answer_timeout_s=float(args.px4_timeout))
+    speed = 0.0 if getattr(args, "px4_free", False) else float(args.speed)
+    opts = HilOptions(speed=speed, answer_timeout_s=float(args.px4_timeout))
     opts.validate()
     bridge = HilBridge(load_scenario(args.scenario), seed=args.seed, say=say)
     link: SimLink
