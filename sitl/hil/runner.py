@@ -288,7 +288,10 @@ class HilRunner:
         p = self.peripheral
         if p is None:
             return
-        if self.px4_system is not None:
+        # A flight controller's USB port starts MAVLink only once it hears a HEARTBEAT (PX4's
+        # cdcacm_autostart), so over serial the peripheral announces itself before PX4 has spoken
+        # (as system 1, PX4's default, until PX4's id is known).
+        if self.px4_system is not None or not isinstance(self.link, TcpSimLink):
             p.heartbeat(time.monotonic())
         for m in p.poll():
             self.bridge.truth.on_message(m)

@@ -5,7 +5,8 @@ it what the companion programs publish: the estimator's WIND_COV and the mission
 (NAMED_VALUE_FLOAT ``SRC_N/E/D/CONF``, :mod:`wire.names`). :class:`TruthScore` scores each WIND_COV
 against the true wind at the vehicle at the estimate's time stamp. In lockstep PX4's clock is the
 simulation time (:func:`sitl.hil.messages.hil_time_us`), so the estimator's vehicle time and the
-truth share one clock. Only airborne samples (true height over 1 m) are scored.
+truth share one clock. Only airborne samples (true height over 1 m) are scored; a second RMSE
+leaves out the first 10 s after each lift-off (the filter's start from a cold state).
 
 Conventions: SI, NED, wind = air-mass velocity NED; simulation time in s.
 """
@@ -25,6 +26,8 @@ from wire.names import SRC_CONF, SRC_NAMES
 AIRBORNE_M = 1.0
 #: A truth sample is used for an estimate within this time of it [s].
 MATCH_S = 0.1
+#: The second RMSE leaves out the estimates of the first seconds of each flight (the lift-off transient) [s].
+SETTLE_S = 10.0
 
 
 class TruthScore:
@@ -37,6 +40,10 @@ class TruthScore:
         self.h: deque[float] = deque(maxlen=n)
         self.err2 = np.zeros(3)
         self.n = 0
+        self.err2_settled = np.zeros(3)
+        self.n_settled = 0
+        self._lift_off = -math.inf  # time the current flight passed AIRBORNE_M
+        self._was_airborne = False
         self.received = 0
         self.last_estimate: list[float] | None = None
         self.path_m = 0.0
@@ -50,6 +57,10 @@ class TruthScore:
         self.t.append(float(t))
         self.w.append(np.array(wind_ned, dtype=float))
         self.h.append(-float(pos[2]))
+        airborne = -float(pos[2]) > AIRBORNE_M
+        if airborne and not self._was_airborne:
+            self._lift_off = float(t)
+        self._was_airborne = airborne
         if self._prev is not None:
             self.path_m += float(np.linalg.norm(pos - self._prev))
         self._prev = pos
@@ -73,9 +84,13 @@ class TruthScore:
             w = np.array([msg.wind_x, msg.wind_y, msg.wind_z], dtype=float)
             self.last_estimate = [round(float(v), 3) for v in w]
             tr = self.at(msg.time_usec * 1e-6)
+            t = msg.time_usec * 1e-6
             if tr is not None and tr[1] > AIRBORNE_M and np.all(np.isfinite(w)):
                 self.err2 += (w - tr[0]) ** 2
                 self.n += 1
+                if t - self._lift_off >= SETTLE_S:
+                    self.err2_settled += (w - tr[0]) ** 2
+                    self.n_settled += 1
         elif mtype == "NAMED_VALUE_FLOAT":
             name = str(msg.name).rstrip("\x00")
             if name in SRC_NAMES:
@@ -87,6 +102,7 @@ class TruthScore:
     def to_dict(self, sources_ned: list[list[float]]) -> dict[str, Any]:
         """The wind RMSE (NED and horizontal, m/s), the declaration and its horizontal error [m]."""
         rmse = np.sqrt(self.err2 / self.n) if self.n else np.full(3, math.nan)
+        settled = np.sqrt(self.err2_settled / self.n_settled) if self.n_settled else np.full(3, math.nan)
         err = None
         if self.declaration is not None and sources_ned:
             dn = np.array(self.declaration["declared_ned"][:2])
@@ -94,6 +110,8 @@ class TruthScore:
         return {"wind_estimates_received": self.received, "wind_estimates_scored": self.n,
                 "wind_rmse_ned_m_s": [round(float(v), 3) for v in rmse],
                 "wind_rmse_horizontal_m_s": round(float(math.hypot(rmse[0], rmse[1])), 3),
+                "wind_rmse_ned_after_10s_m_s": [round(float(v), 3) for v in settled],
+                "wind_estimates_scored_after_10s": self.n_settled,
                 "wind_last_estimate_ned_m_s": self.last_estimate, "true_sources_ned_m": sources_ned,
                 "declared": self.declaration, "declared_error_horizontal_m": err,
                 "path_length_m": round(self.path_m, 2)}  # fmt: skip
