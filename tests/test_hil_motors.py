@@ -99,7 +99,7 @@ def test_px4_env_for_sitl() -> None:
     assert env["PX4_SYS_AUTOSTART"] == "10016" and env["PX4_SIM_MODEL"] == "none_iris"
     assert env["PX4_PARAM_THR_MDL_FAC"] == "0.992" and env["PX4_PARAM_CA_ROTOR1_KM"] == "0.1734"
     assert env["PX4_PARAM_COM_DL_LOSS_T"] == "50" and env["PX4_PARAM_COM_OF_LOSS_T"] == "5"
-    assert env["PX4_PARAM_SDLOG_MODE"] == "-1"
+    assert env["PX4_PARAM_SDLOG_BACKEND"] == "0"
     assert not any(k.startswith("PX4_PARAM_HIL_ACT") for k in env)  # not parameters of a SITL build
     assert px4_env(speed=0.5)["PX4_PARAM_COM_DL_LOSS_T"] == "10"  # never below PX4's defaults
 

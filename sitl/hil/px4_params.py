@@ -122,7 +122,7 @@ def px4_env(speed: float = 1.0, params: list[Param] | None = None, logging: bool
     for name, (value, typ) in LOSS_TIMEOUTS_S.items():
         env[f"PX4_PARAM_{name}"] = Param(name, math.ceil(value * k) if typ == INT32 else value * k, typ).text()
     if not logging:
-        env["PX4_PARAM_SDLOG_MODE"] = "-1"
+        env["PX4_PARAM_SDLOG_BACKEND"] = "0"  # rc.logging starts no logger (SDLOG_MODE -1 does not stop it)
     return env
 
 

@@ -81,7 +81,7 @@ class Px4Sitl:
         binary: the ``px4`` binary; instance: ``N``; workdir: a fresh directory for this run;
         log: where PX4's output goes; sih: PX4's own SIH physics (airframe 10040) instead of an
             external simulator; speed: windseek's speed factor (scales PX4's link-loss timeouts);
-        logging: PX4's flight log (``SDLOG_MODE``); extra_env: more ``PX4_PARAM_*`` or other variables.
+        logging: PX4's flight log (``SDLOG_BACKEND``); extra_env: more ``PX4_PARAM_*`` or other variables.
     """
 
     def __init__(self, binary: Path, instance: int, workdir: Path, log: Path, sih: bool = False, speed: float = 1.0,
@@ -94,7 +94,7 @@ class Px4Sitl:
         if sih:
             env.update(SIH_ENV)
             if not logging:
-                env["PX4_PARAM_SDLOG_MODE"] = "-1"
+                env["PX4_PARAM_SDLOG_BACKEND"] = "0"
         else:
             env.update(px4_env(speed, logging=logging))
         env.update(extra_env or {})
