@@ -25,6 +25,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -47,67 +48,70 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def fly_and_measure(api_port: int, seconds: float, pids: list[int]) -> dict[str, Any]:
-    """Arm, take off to 10 m, wait for the hover, then measure over ``seconds`` wall seconds."""
-    from pymavlink import mavutil
+class _Telemetry:
+    """PX4's API link read continuously in a thread (a socket read only now and then holds a backlog of
+    old messages): the newest PX4 time, relative altitude and system id."""
 
-    m = mavutil.mavlink_connection(f"udpout:127.0.0.1:{api_port}", source_system=245, source_component=190)
-    end = time.monotonic() + 180.0
-    alt = 0.0
-    state = "wait"
-    hb = 0.0
-    t_state = time.monotonic()
-    while time.monotonic() < end:
-        now = time.monotonic()
-        if now - hb > 0.5:
-            m.mav.heartbeat_send(6, 8, 0, 0, 4)
-            hb = now
-        msg = m.recv_match(blocking=True, timeout=0.2)
-        if msg is None:
-            continue
-        typ = msg.get_type()
-        if typ == "GLOBAL_POSITION_INT":
-            alt = msg.relative_alt * 1e-3
-        if typ == "HEARTBEAT" and msg.get_srcComponent() == 1:
-            sysid = msg.get_srcSystem()
-            if state == "wait" and now - t_state > 5.0:
-                m.mav.command_long_send(sysid, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
-                m.mav.command_long_send(sysid, 1, 22, 0, 0, 0, 0, float("nan"), float("nan"), float("nan"),
-                                        HOME_ALT_M + 10.0)  # fmt: skip
-                state, t_state = "takeoff", now
-            elif state == "takeoff" and now - t_state > 15.0 and alt < 1.0:
-                state, t_state = "wait", now  # retry (preflight checks may not have passed yet)
-        if state == "takeoff" and alt > 9.0:
-            break
-    if alt <= 9.0:
-        raise RuntimeError("PX4 did not take off to 10 m within 180 s")
-    time.sleep(3.0)  # settle in hover
-    _, t0 = _latest_time(m)
-    c0 = [cpu_s(p) for p in pids]
-    w0 = time.monotonic()
-    load0 = os.getloadavg()[0]
-    time.sleep(seconds)
-    _, t1 = _latest_time(m)
-    w1 = time.monotonic()
-    c1 = [cpu_s(p) for p in pids]
+    def __init__(self, api_port: int) -> None:
+        from pymavlink import mavutil
+
+        self.m = mavutil.mavlink_connection(f"udpout:127.0.0.1:{api_port}", source_system=245, source_component=190)
+        self.t_px4 = -1.0
+        self.alt = 0.0
+        self.sysid: int | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        hb = 0.0
+        while not self._stop.is_set():
+            if time.monotonic() - hb > 0.5:
+                hb = time.monotonic()
+                self.m.mav.heartbeat_send(6, 8, 0, 0, 4)  # a ground station: PX4 keeps streaming to us
+            msg = self.m.recv_match(blocking=True, timeout=0.1)
+            if msg is None:
+                continue
+            if msg.get_type() == "GLOBAL_POSITION_INT":
+                self.t_px4, self.alt = msg.time_boot_ms * 1e-3, msg.relative_alt * 1e-3
+            elif msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
+                self.sysid = msg.get_srcSystem()
+
+    def command(self, cmd: int, *params: float) -> None:
+        if self.sysid is not None:
+            self.m.mav.command_long_send(self.sysid, 1, cmd, 0, *params)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+        self.m.close()
+
+
+def fly_and_measure(api_port: int, seconds: float, pids: list[int]) -> dict[str, Any]:
+    """Arm and take off to 10 m (retried: PX4's preflight checks may need a while), wait for the hover,
+    then measure over ``seconds`` wall seconds."""
+    tel = _Telemetry(api_port)
+    try:
+        end = time.monotonic() + 240.0
+        sent = -1e9
+        while tel.alt < 9.0:
+            if time.monotonic() > end:
+                raise RuntimeError("PX4 did not take off to 10 m within 240 s")
+            if tel.alt < 0.5 and time.monotonic() - sent > 10.0 and tel.t_px4 > 10.0:
+                tel.command(400, 1, 0, 0, 0, 0, 0, 0)  # arm
+                tel.command(22, 0, 0, 0, float("nan"), float("nan"), float("nan"), HOME_ALT_M + 10.0)  # take off
+                sent = time.monotonic()
+            time.sleep(0.2)
+        time.sleep(3.0)  # settle in hover
+        t0, c0, w0, load0 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic(), os.getloadavg()[0]
+        time.sleep(seconds)
+        t1, c1, w1 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic()
+    finally:
+        tel.close()
     steps = max(1.0, (t1 - t0) / STEP_S)
-    m.close()
     return {"speed": (t1 - t0) / (w1 - w0), "sim_s": t1 - t0, "wall_s": w1 - w0,
             "cpu_us_per_step": [1e6 * (b - a) / steps for a, b in zip(c0, c1, strict=True)],
             "load": (load0 + os.getloadavg()[0]) / 2}  # fmt: skip
-
-
-def _latest_time(m: Any) -> tuple[float, float]:
-    """Drain the socket and return (wall, PX4 boot time in s) of the newest GLOBAL_POSITION_INT."""
-    t = -1.0
-    end = time.monotonic() + 2.0
-    while time.monotonic() < end:
-        msg = m.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=0.05)
-        if msg is None and t >= 0:
-            break
-        if msg is not None:
-            t = msg.time_boot_ms * 1e-3
-    return time.monotonic(), t
 
 
 def run_windseek(binary: Path, seconds: float, tmp: Path) -> dict[str, Any]:

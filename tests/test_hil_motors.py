@@ -117,3 +117,17 @@ def test_motor_mapping_in_the_world() -> None:
             b.step()
         rates = b.world.rates
         assert tuple(np.sign(rates)) == signs, (motor, rates)
+
+
+def test_the_readme_shell_line_exports_the_environment() -> None:
+    """``eval "$(python -m sitl.hil.px4_params --speed 10 --no-log)"`` in sh gives PX4 exactly px4_env()."""
+    import os
+    import subprocess
+    import sys
+
+    script = f'PX4_SIMULATOR=sihsim; export PX4_SIMULATOR; eval "$("{sys.executable}" -m sitl.hil.px4_params ' \
+             '--speed 10 --no-log)"; env'  # fmt: skip
+    out = subprocess.run(["sh", "-c", script], capture_output=True, text=True, check=True, timeout=120,
+                         cwd=os.path.dirname(os.path.dirname(__file__))).stdout  # fmt: skip
+    got = dict(line.split("=", 1) for line in out.splitlines() if line.startswith("PX4_"))
+    assert got == px4_env(10.0, logging=False)  # and PX4_SIMULATOR is unset (else PX4 would pick SIH)
