@@ -64,23 +64,24 @@ class SimLink:
     def _read(self) -> bytes:
         raise NotImplementedError
 
-    def encode(self, msgs: list[Any]) -> bytes:
-        """Frames of ``msgs`` with our identity and sequence numbers."""
+    def encode(self, msgs: list[Any]) -> list[bytes]:
+        """One frame per message, with our identity and sequence numbers."""
         enc = self.encoder
         out = []
         for m in msgs:
             out.append(m.pack(enc))
             enc.seq = (enc.seq + 1) % 256
-        return b"".join(out)
+        return out
 
     def send(self, msgs: list[Any]) -> None:
-        """Send messages (no-op while not connected)."""
+        """Send messages in one write (no-op while not connected)."""
         if not msgs or not self.connected:
             return
-        data = self.encode(msgs)
+        frames = self.encode(msgs)
         if self.tap is not None:
-            self.tap(data, True)
-        self._write(data)
+            for f in frames:
+                self.tap(f, True)
+        self._write(b"".join(frames))
         self.counters["tx_messages"] += len(msgs)
 
     def receive(self, timeout_s: float) -> list[Any]:
