@@ -11,7 +11,7 @@ States (:class:`Sync`):
   before the next physics step. The wait is bounded (``answer_timeout_s`` wall seconds): on a
   timeout (PX4 stalled, an answer lost) the runner says so, counts it and steps on with the last
   outputs, so a lost answer cannot deadlock both sides. Paced at ``speed`` simulated seconds per
-  wall second, or as fast as PX4 answers with ``speed = 0``.
+  wall second, or as fast as PX4 answers with ``speed = 0`` (``--px4-free``).
 - ``realtime``: PX4 answers without the lockstep flag (HITL on a flight controller, whose clock is
   its own, or a SITL build without lockstep). Steps run at real time; outputs apply as they come.
   If they stop for ``realtime_timeout_s`` the world freezes until they come back.
@@ -270,11 +270,12 @@ class HilRunner:
             return
         self.state = Sync.REALTIME
         self._last_answer_wall = time.monotonic()
+        ignored = "" if self.options.speed == 1.0 else " (the speed factor does not apply)"
         if isinstance(self.link, TcpSimLink):
             self.say("PX4 does not run in lockstep (HIL_ACTUATOR_CONTROLS flags bit 0 clear, a non-lockstep build): "
-                     "windseek steps in real time and applies its outputs as they come")  # fmt: skip
+                     f"windseek steps in real time and applies its outputs as they come{ignored}")  # fmt: skip
         else:
-            self.say(f"PX4 (HITL) answering from t = {t:.2f} s: stepping in real time")
+            self.say(f"PX4 (HITL) answering from t = {t:.2f} s: stepping in real time{ignored}")
 
     def _learn_system(self, sysid: int) -> None:
         if sysid == self.px4_system or not 0 < sysid < 255:
