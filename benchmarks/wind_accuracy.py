@@ -37,9 +37,9 @@ import numpy as np
 from windseek import numba_cache  # before any kernel module
 
 numba_cache.configure()
-from estimator.inprocess import InProcessRunner
 from estimator.metrics import accuracy
 from estimator.ukf import EstimatorConfig
+from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import Route, Start, Waypoint, load_scenario
 from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_SPECIFIC_FORCE, T_TIME, T_VEL, T_WIND, Simulation
 from sitl.world.wind import SteadyWind

@@ -32,18 +32,19 @@ def speed_direction(wind_ned: np.ndarray, cov_ned: np.ndarray) -> tuple[float, f
 
     Near zero speed the direction is undefined: its sigma is reported as 180 deg.
     """
+    # Scalar arithmetic: called once per filter step, where numpy's per-call cost dominated.
     wn, we = float(wind_ned[0]), float(wind_ned[1])
-    C = cov_ned[0:2, 0:2]
+    c00, c01, c11 = float(cov_ned[0, 0]), 0.5 * float(cov_ned[0, 1] + cov_ned[1, 0]), float(cov_ned[1, 1])
     s2 = wn * wn + we * we
     s = math.sqrt(s2)
-    d = float(from_direction_deg(wn, we))
+    d = math.degrees(math.atan2(-we, -wn)) % 360.0
     if s < 1e-6:
-        return s, math.sqrt(max(float(np.trace(C)) / 2.0, 0.0)), d, 180.0
-    js = np.array([wn, we]) / s
-    # d(atan2(-we, -wn)) / d[wn, we] = [-we, wn] / s^2 (in radians).
-    jd = np.array([-we, wn]) / s2
-    s_sig = math.sqrt(max(float(js @ C @ js), 0.0))
-    d_sig = min(math.degrees(math.sqrt(max(float(jd @ C @ jd), 0.0))), 180.0)
+        return s, math.sqrt(max((c00 + c11) / 2.0, 0.0)), d, 180.0
+    # Jacobians: of the speed, [wn, we] / s; of atan2(-we, -wn), [-we, wn] / s^2 (radians).
+    var_s = (wn * wn * c00 + 2.0 * wn * we * c01 + we * we * c11) / s2
+    var_d = (we * we * c00 - 2.0 * wn * we * c01 + wn * wn * c11) / (s2 * s2)
+    s_sig = math.sqrt(max(var_s, 0.0))
+    d_sig = min(math.degrees(math.sqrt(max(var_d, 0.0))), 180.0)
     return s, s_sig, d, d_sig
 
 
@@ -56,8 +57,8 @@ class DirectionFilter:
         order: Butterworth order.
 
     The sections are run in transposed direct form II with the same coefficients and state
-    layout as ``scipy.signal.sosfilt`` (``zi`` per section); a per-sample Python loop over two
-    channels is several times cheaper than calling ``sosfilt`` for each sample.
+    layout as ``scipy.signal.sosfilt`` (``zi`` per section); a per-sample loop over two
+    channels on Python floats is several times cheaper than calling ``sosfilt`` for each sample.
     The state starts at steady state on the first sample (no start-up transient from zero).
     """
 
@@ -66,7 +67,8 @@ class DirectionFilter:
             raise ValueError(f"cutoff_hz = {cutoff_hz}: must be in (0, rate_hz/2 = {rate_hz / 2})")
         self.sos = signal.butter(order, cutoff_hz, btype="low", fs=rate_hz, output="sos")
         self._zi0 = signal.sosfilt_zi(self.sos)  # (n_sections, 2) for a unit step
-        self.zi: np.ndarray | None = None  # (2 channels, n_sections, 2)
+        self._sections = [tuple(float(v) for v in row) for row in self.sos]
+        self.zi: list[list[list[float]]] | None = None  # [2 channels][n_sections][2]
         self.value_deg = float("nan")
 
     def reset(self) -> None:
@@ -80,15 +82,15 @@ class DirectionFilter:
         a = math.radians(direction_deg)
         x = (math.cos(a), math.sin(a))
         if self.zi is None:
-            self.zi = np.stack([self._zi0 * x[0], self._zi0 * x[1]])
+            self.zi = [(self._zi0 * x[c]).tolist() for c in range(2)]
         y = [0.0, 0.0]
         for c in range(2):
             v = x[c]
             zc = self.zi[c]
-            for s, (b0, b1, b2, _a0, a1, a2) in enumerate(self.sos):
-                out = b0 * v + zc[s, 0]
-                zc[s, 0] = b1 * v - a1 * out + zc[s, 1]
-                zc[s, 1] = b2 * v - a2 * out
+            for zs, (b0, b1, b2, _a0, a1, a2) in zip(zc, self._sections, strict=True):
+                out = b0 * v + zs[0]
+                zs[0] = b1 * v - a1 * out + zs[1]
+                zs[1] = b2 * v - a2 * out
                 v = out
             y[c] = v
         self.value_deg = math.degrees(math.atan2(y[1], y[0])) % 360.0

@@ -1,58 +1,71 @@
-"""MAVLink adapter: pymavlink messages in, filter inputs out; the estimate back out as WIND_COV.
+"""MAVLink adapter for recorded logs: pymavlink messages in, filter inputs out; WIND_COV out.
 
-Runs the same :class:`~estimator.ukf.WindEstimator` against the project's SITL
-(``windseek sitl``) or a real PX4 / ArduPilot flight controller.
+``windseek review`` (``review/tlog.py``) replays a ``.tlog`` through :class:`MavlinkWindAdapter`.
+Live consumers use :class:`estimator.live.LiveCore` instead (lock-on, input selection, ground
+gate, clock resets, actuator outputs); both decode with ``estimator.mavlink_decode``.
 
-Inputs (the first message type seen of each group is used, so two sources never feed the
-filter twice; all decoded to SI, FRD/NED):
+Inputs (the first message type seen of each group is used, unless the caller sets ``sources``;
+two sources never feed the filter twice; all decoded to SI, FRD/NED):
 - IMU (specific force m/s^2 + gyro rad/s): HIL_SENSOR, HIGHRES_IMU (SI already) or
   SCALED_IMU (mG, mrad/s). Each IMU message is one predict + accelerometer update.
 - Attitude (body FRD -> NED): ATTITUDE_QUATERNION ([w, x, y, z] = q1..q4) or ATTITUDE
-  (3-2-1 Euler). Their body rates are used only when the IMU message carries no gyro.
+  (3-2-1 Euler).
 - Velocity (NED m/s): LOCAL_POSITION_NED, GLOBAL_POSITION_INT (cm/s) or GPS_RAW_INT
   (ground speed and course over ground: horizontal only). Treated as valid at their
   timestamp (an autopilot's EKF output is already delay-compensated).
 - Rotor speeds (rad/s): ESC_STATUS (rpm, windseek dialect, ``index`` = first ESC of the
   message), or RAW_RPM (one sensor per message, no time stamp: the latest time seen is
   used). ESC_INFO carries no speed: its failure flags mark an ESC's telemetry as unusable.
-  ``esc_to_rotor`` maps ESC numbers to the rotor order of ``vehicle.rotor_model`` (1 front
-  right, 2 rear right, 3 rear left, 4 front left); the project's SITL uses that order, PX4's
-  quad-X order (1 FR, 2 RL, 3 FL, 4 RR) is :data:`PX4_QUAD_X`.
+  ``esc_to_rotor`` maps ESC numbers to the rotor order (``estimator.motor_output``:
+  :data:`SITL_ORDER`, :data:`PX4_QUAD_X`).
 
 Time: messages carry time_usec or time_boot_ms of the same (autopilot boot) clock; both
 become seconds. Samples that go back in time are rejected by the estimator and counted.
 
-Output: WIND_COV with wind_x/y/z = the air-mass velocity in NED (m/s, the MAVLink and PX4
-convention, same as ours), var_horiz/var_vert (m^2/s^2), accuracies as 1-sigma (m/s).
+Output (:func:`wind_cov_message`): WIND_COV with wind_x/y/z = the air-mass velocity in NED (m/s,
+the MAVLink and PX4 convention, same as ours), var_horiz/var_vert (m^2/s^2), accuracies as
+1-sigma (m/s).
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
+from typing import Any
 
 import numpy as np
 
+from estimator import mavlink_decode as dec
+from estimator.motor_output import PX4_QUAD_X, SITL_ORDER
 from estimator.ukf import WindEstimator
-from vehicle.frames import euler_to_quat
 from wire.dialect import mavlink
 
-RPM_TO_RAD_S = 2.0 * math.pi / 60.0
-G0 = 9.80665
-#: ESC number (0-based) -> rotor index (0-based) for the project's SITL: identity.
-SITL_ORDER = (0, 1, 2, 3)
-#: PX4 quad-X: motor 1 FR, 2 RL, 3 FL, 4 RR -> rotors FR(0), RR(1), RL(2), FL(3).
-PX4_QUAD_X = (0, 2, 3, 1)
+__all__ = ["ATT_TYPES", "IMU_TYPES", "PX4_QUAD_X", "SITL_ORDER", "VEL_TYPES", "MavlinkWindAdapter",
+           "wind_cov_message"]  # fmt: skip
 
 IMU_TYPES = ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU")
-ATT_TYPES = ("ATTITUDE_QUATERNION", "ATTITUDE")
-VEL_TYPES = ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT")
+ATT_TYPES = dec.PREFERENCE["attitude"]
+VEL_TYPES = dec.PREFERENCE["velocity"]
 
 
-def _time_s(msg) -> float:
-    if hasattr(msg, "time_usec"):
-        return msg.time_usec * 1e-6
-    return msg.time_boot_ms * 1e-3
+def wind_cov_message(
+    t_s: float, wind_ned: np.ndarray, cov_ned: np.ndarray, wind_alt_m: float = float("nan")
+) -> mavlink.MAVLink_wind_cov_message:
+    """WIND_COV for an estimate at time ``t_s`` (s, autopilot clock): air-mass velocity NED (m/s),
+    var_horiz = var N + var E and var_vert ((m/s)^2), accuracies as their square roots (m/s)."""
+    var_h = float(cov_ned[0, 0] + cov_ned[1, 1])
+    var_v = float(cov_ned[2, 2])
+    return mavlink.MAVLink_wind_cov_message(
+        int(round(t_s * 1e6)),
+        float(wind_ned[0]),
+        float(wind_ned[1]),
+        float(wind_ned[2]),
+        var_h,
+        var_v,
+        float(wind_alt_m),
+        math.sqrt(max(var_h, 0.0)),
+        math.sqrt(max(var_v, 0.0)),
+    )
 
 
 class MavlinkWindAdapter:
@@ -77,28 +90,36 @@ class MavlinkWindAdapter:
         self._rotor_seen = np.zeros(4, dtype=bool)
         self._esc_failed = np.zeros(4, dtype=bool)
         self._rotor_t = -math.inf
-        self._rates: np.ndarray | None = None
 
     def _claim(self, group: str, mtype: str) -> bool:
         # One source per group: the first type seen wins.
         return self.sources.setdefault(group, mtype) == mtype
 
-    def handle(self, msg) -> bool:
+    def handle(self, msg: Any) -> bool:
         """Feed one decoded pymavlink message. Returns True when the estimator took it."""
         mtype = msg.get_type()
         self.counts[mtype] += 1
-        if hasattr(msg, "time_usec") or hasattr(msg, "time_boot_ms"):
-            self.t_last = max(self.t_last, _time_s(msg))
+        t = dec.stamp_s(msg)
+        if t is not None:
+            self.t_last = max(self.t_last, t)
+        est = self.est
         if mtype in IMU_TYPES:
-            return self._claim("imu", mtype) and self._imu(msg, mtype)
+            return self._claim("imu", mtype) and est.imu(t, *dec.imu(msg))  # type: ignore[arg-type]
         if mtype in ATT_TYPES:
-            return self._claim("attitude", mtype) and self._attitude(msg, mtype)
+            if not self._claim("attitude", mtype):
+                return False
+            q = dec.attitude(msg)
+            return est._reject("attitude:bad_value") if q is None else est.set_attitude(t, q)  # type: ignore[arg-type]
         if mtype in VEL_TYPES:
-            return self._claim("velocity", mtype) and self._velocity(msg, mtype)
-        if mtype == "ESC_STATUS":
-            return self._claim("rotors", mtype) and self._esc(msg.index, msg.rpm, _time_s(msg))
-        if mtype == "RAW_RPM":
-            return self._claim("rotors", mtype) and self._esc(msg.index, [msg.frequency], self.t_last)
+            if not self._claim("velocity", mtype):
+                return False
+            v = dec.velocity(msg, self.min_gps_fix)
+            return v is not None and est.gnss_velocity(t, v)  # type: ignore[arg-type]
+        if mtype in ("ESC_STATUS", "RAW_RPM"):
+            if not self._claim("rotors", mtype):
+                return False
+            index, speeds = dec.rotor_telemetry(msg)
+            return self._esc(index, speeds, t if mtype == "ESC_STATUS" else self.t_last)  # type: ignore[arg-type]
         if mtype == "ESC_INFO":
             for i, flags in enumerate(msg.failure_flags):
                 k = msg.index + i
@@ -107,45 +128,12 @@ class MavlinkWindAdapter:
             return True
         return False
 
-    def _imu(self, msg, mtype: str) -> bool:
-        t = _time_s(msg)
-        if mtype == "SCALED_IMU":
-            acc = np.array([msg.xacc, msg.yacc, msg.zacc]) * (G0 / 1000.0)
-            gyr = np.array([msg.xgyro, msg.ygyro, msg.zgyro]) * 1e-3
-        else:
-            acc = np.array([msg.xacc, msg.yacc, msg.zacc], dtype=float)
-            gyr = np.array([msg.xgyro, msg.ygyro, msg.zgyro], dtype=float)
-        return self.est.imu(t, acc, gyr)
-
-    def _attitude(self, msg, mtype: str) -> bool:
-        t = _time_s(msg)
-        if mtype == "ATTITUDE_QUATERNION":
-            q = np.array([msg.q1, msg.q2, msg.q3, msg.q4], dtype=float)
-        else:
-            vals = (msg.roll, msg.pitch, msg.yaw)
-            if not all(math.isfinite(v) for v in vals):
-                return self.est._reject("attitude:bad_value")
-            q = euler_to_quat(*vals)
-        return self.est.set_attitude(t, q)
-
-    def _velocity(self, msg, mtype: str) -> bool:
-        t = _time_s(msg)
-        if mtype == "LOCAL_POSITION_NED":
-            return self.est.gnss_velocity(t, np.array([msg.vx, msg.vy, msg.vz], dtype=float))
-        if mtype == "GLOBAL_POSITION_INT":
-            return self.est.gnss_velocity(t, np.array([msg.vx, msg.vy, msg.vz], dtype=float) * 0.01)
-        if msg.fix_type < self.min_gps_fix or msg.vel == 65535 or msg.cog == 65535:
-            return False
-        speed = msg.vel * 0.01
-        cog = math.radians(msg.cog * 0.01)
-        return self.est.gnss_velocity(t, np.array([speed * math.cos(cog), speed * math.sin(cog)]))
-
-    def _esc(self, index: int, rpms, t: float) -> bool:
-        for i, rpm in enumerate(rpms):
+    def _esc(self, index: int, speeds: list[float], t: float) -> bool:
+        for i, w in enumerate(speeds):
             k = index + i
             if k < len(self.esc_to_rotor):
                 r = self.esc_to_rotor[k]
-                self._rotors[r] = float(rpm) * RPM_TO_RAD_S
+                self._rotors[r] = w
                 self._rotor_seen[r] = True
         # Push a complete set once per time stamp: RAW_RPM arrives one rotor per message with
         # no time of its own, so several messages share the latest time seen.
@@ -154,44 +142,7 @@ class MavlinkWindAdapter:
         self._rotor_t = t
         return self.est.set_rotor_speeds(t, self._rotors.copy())
 
-    # ------------------------------------------------------------------ output
     def wind_cov(self, wind_alt_m: float = float("nan")) -> mavlink.MAVLink_wind_cov_message:
         """The current estimate as a WIND_COV message (air-mass velocity NED, m/s)."""
         e = self.est.estimate(advance_direction=False)
-        C = e.cov_ned
-        var_h = float(C[0, 0] + C[1, 1])
-        var_v = float(C[2, 2])
-        t_us = int(round((e.t if math.isfinite(e.t) else self.t_last) * 1e6))
-        return mavlink.MAVLink_wind_cov_message(
-            t_us,
-            float(e.wind_ned[0]),
-            float(e.wind_ned[1]),
-            float(e.wind_ned[2]),
-            var_h,
-            var_v,
-            float(wind_alt_m),
-            math.sqrt(max(var_h, 0.0)),
-            math.sqrt(max(var_v, 0.0)),
-        )
-
-    def run(self, connection, publish_hz: float = 5.0, duration_s: float | None = None) -> None:
-        """Read messages from a pymavlink connection (``mavutil.mavlink_connection``) and publish
-        WIND_COV at ``publish_hz`` of message time, until ``duration_s`` of message time or EOF."""
-        t0 = None
-        next_pub = 0.0
-        while True:
-            msg = connection.recv_match(blocking=True, timeout=1.0)
-            if msg is None:
-                if getattr(connection, "_eof", False):
-                    return
-                continue
-            if msg.get_type() == "BAD_DATA":
-                continue
-            self.handle(msg)
-            if t0 is None and self.t_last > 0.0:
-                t0 = self.t_last
-            if self.est.t is not None and self.t_last >= next_pub:
-                connection.mav.send(self.wind_cov())
-                next_pub = self.t_last + 1.0 / publish_hz
-            if duration_s is not None and t0 is not None and self.t_last - t0 >= duration_s:
-                return
+        return wind_cov_message(e.t if math.isfinite(e.t) else self.t_last, e.wind_ned, e.cov_ned, wind_alt_m)

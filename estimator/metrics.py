@@ -136,14 +136,15 @@ def accuracy(
     if step_times:
         err = np.linalg.norm(avg_est - avg, axis=1)
         recon = max(reconvergence_time(t, err, ts) for ts in step_times)
+    cov_axis = np.mean(inside, axis=0)
     return Accuracy(
-        rmse_ms=tuple(float(v) for v in rmse),
-        rmse_avg_ms=tuple(float(v) for v in rmse_a),
+        rmse_ms=(float(rmse[0]), float(rmse[1]), float(rmse[2])),
+        rmse_avg_ms=(float(rmse_a[0]), float(rmse_a[1]), float(rmse_a[2])),
         rmse_horizontal_ms=float(math.hypot(rmse[0], rmse[1])),
         rmse_horizontal_avg_ms=float(math.hypot(rmse_a[0], rmse_a[1])),
         direction_rmse_deg=d_rmse,
         direction_filtered_rmse_deg=df_rmse,
         coverage_2sigma=float(np.mean(inside)),
-        coverage_2sigma_axis=tuple(float(v) for v in np.mean(inside, axis=0)),
+        coverage_2sigma_axis=(float(cov_axis[0]), float(cov_axis[1]), float(cov_axis[2])),
         reconverge_s=recon,
     )

@@ -42,7 +42,7 @@ class MotorCommandModel:
         if c.shape != (4,) or not np.all(np.isfinite(c)) or (self.t is not None and t <= self.t):
             return None
         c = np.clip(c, 0.0, self.w_max)
-        if self.speeds is None:
+        if self.speeds is None or self.t is None:
             # Start where the rotors would be after holding the first command (hover start).
             self.speeds = c.copy()
         else:

@@ -29,6 +29,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from mission.obstacles import Obstacles
 from mission.result import MissionError, MissionResult
 from mission.safety import Abort, SafetyLimits, Supervisor
 from mission.strategies.base import Observation, Setpoint, Strategy, WindInfo
@@ -84,11 +85,13 @@ class LoopConfig:
 
 
 class MissionLoop:
-    """One mission (see the module docstring). ``on_tick(t)`` is called at every search tick (scoring)."""
+    """One mission (see the module docstring). ``on_tick(t)`` is called at every search tick (scoring);
+    ``obstacles``: buildings no setpoint may lead into (the supervisor clamps around them)."""
 
     def __init__(self, vehicle: Vehicle, strategy: Strategy, params: CommonParams, wind: MissionWind,
                  limits: SafetyLimits, cfg: LoopConfig | None = None, seed: int = 0,
-                 on_tick: Callable[[float], None] | None = None) -> None:  # fmt: skip
+                 on_tick: Callable[[float], None] | None = None,
+                 obstacles: Obstacles | None = None) -> None:  # fmt: skip
         limits.validate()
         self.v = vehicle
         self.strategy = strategy
@@ -98,6 +101,7 @@ class MissionLoop:
         self.cfg = cfg or LoopConfig()
         self.seed = seed
         self.on_tick = on_tick
+        self.obstacles = obstacles
         self.result = MissionResult(strategy=str(getattr(strategy, "name", "")), wind=wind.mode)
         self.sup: Supervisor | None = None
         self.t_arm = math.nan
@@ -123,7 +127,7 @@ class MissionLoop:
         home = st.pos.copy()
         self.result.home_ned = [round(float(v), 3) for v in home]
         self.result.wind_source = self.wind.describe()
-        self.sup = Supervisor(self.limits, home)
+        self.sup = Supervisor(self.limits, home, self.obstacles)
         alt = self.sup.altitude_target(self.params.altitude_m)
         if alt != self.params.altitude_m:
             self.say(f"SAFETY: search altitude {self.params.altitude_m:g} m clamped to {alt:g} m by the limits")

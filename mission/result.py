@@ -33,6 +33,8 @@ class MissionResult:
         ``candidate_ne``), see ``mission/README.md``.
     wind_ned: the last wind estimate (m/s NED) the strategy used, or None when it had none.
     estimator: the estimator's counters (accepted, rejected, dropped, restarts, inputs).
+    loop_lag_max_ms / loop_lag_p99_ms: how late the runner's event loop woke from a 20 ms sleep (wall ms):
+        what a busy loop would do to setpoints and safety checks (MAVSDK runner only).
     ticks / ticks_skipped: strategy ticks run / skipped because the vehicle clock had moved past them
         (telemetry arriving late or in bursts: a tick is never queued behind another).
     """
@@ -60,6 +62,8 @@ class MissionResult:
     ticks_skipped: int = 0
     tick_rate_hz: float = math.nan
     clamped_setpoints: int = 0
+    loop_lag_max_ms: float = math.nan
+    loop_lag_p99_ms: float = math.nan
     state: str = ""
     wind_ned: list[float] | None = None
     estimator: dict[str, Any] = field(default_factory=dict)

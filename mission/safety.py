@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mission.obstacles import Obstacles
+
 #: Abort causes, in the JSON summary's ``cause`` (plus "declared" for a normal end).
 CAUSES = (
     "declared", "search-ended", "time-limit", "geofence", "link-lost", "estimator-fault", "offboard-rejected",
@@ -98,11 +100,13 @@ class SafetyLimits:
 
 
 class Supervisor:
-    """Applies :class:`SafetyLimits` around a home point (NED, m)."""
+    """Applies :class:`SafetyLimits` around a home point (NED, m), and keeps setpoints out of the
+    buildings of ``obstacles`` (:mod:`mission.obstacles`), if any."""
 
-    def __init__(self, limits: SafetyLimits, home_ned: np.ndarray) -> None:
+    def __init__(self, limits: SafetyLimits, home_ned: np.ndarray, obstacles: Obstacles | None = None) -> None:
         limits.validate()
         self.limits = limits
+        self.obstacles = obstacles
         self.home = np.asarray(home_ned, dtype=float).copy()
         m = limits.margin_m
         lo = self.home + np.asarray(limits.box_min_ned, float)
@@ -137,9 +141,33 @@ class Supervisor:
                     hit = True
                     v[out] = 0.0
             vel = v
+        if self.obstacles is not None and len(self.obstacles) and current is not None:
+            pos, vel, blocked = self._around_buildings(pos, vel, np.asarray(current, float))
+            hit = hit or blocked
         if hit:
             self.clamped += 1
         return pos, vel
+
+    #: A velocity-only setpoint is checked this far ahead (s of flight at that velocity).
+    LOOK_AHEAD_S = 2.0
+
+    def _around_buildings(self, pos: np.ndarray | None, vel: np.ndarray | None, current: np.ndarray
+                          ) -> tuple[np.ndarray | None, np.ndarray | None, bool]:  # fmt: skip
+        """A position target moved back along the path from the vehicle so it stays clear of every
+        building; a velocity that would carry the vehicle into one within LOOK_AHEAD_S stopped."""
+        obs = self.obstacles
+        assert obs is not None
+        if pos is not None:
+            safe = obs.clamp(current, pos, float(self.home[2]))
+            if np.any(safe != pos):
+                v = None if vel is None else np.where(np.arange(3) < 2, 0.0, vel)
+                return safe, v, True
+            return pos, vel, False
+        if vel is not None:
+            ahead = current + self.LOOK_AHEAD_S * np.asarray(vel, float)
+            if np.any(obs.clamp(current, ahead, float(self.home[2])) != ahead):
+                return None, np.array([0.0, 0.0, float(vel[2])]), True
+        return pos, vel, False
 
     def altitude_target(self, altitude_m: float) -> float:
         """A requested altitude above home clamped into the band the setpoints may use [m]."""

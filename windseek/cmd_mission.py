@@ -54,8 +54,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the strategy's randomized choices")
     p.add_argument("--vehicle", default="nasa_quad", help="vehicle file of the estimator's force model")
     p.add_argument("--esc-component", type=int, default=None, metavar="ID",
-                   help="rotor speeds (ESC_STATUS) only from this MAVLink component of the vehicle (158 with "
-                   "windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default any)")
+                   help="--wind estimated: rotor speeds (ESC_STATUS) from this MAVLink component of the vehicle (158 "
+                   "with windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default: the "
+                   "autopilot's own)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 

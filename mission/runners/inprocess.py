@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from mission.loop import LoopConfig, MissionLoop
+from mission.obstacles import Obstacles
 from mission.runners.lockstep import InProcessWind, LockstepVehicle
 from mission.safety import SafetyLimits
 from mission.strategies import make_strategy
@@ -149,9 +150,10 @@ def run_trial(
     src = np.asarray(sim.chem.sources_ned[0] if sim.chem is not None else np.zeros(3), dtype=float)
     score = _Scorer(sim, src, p.rate_hz, keep_track)
     vehicle.tick_hooks.append(score.every_tick)
+    obstacles = Obstacles.from_buildings(sc.urban.buildings) if sc.urban is not None and sc.urban.buildings else None
     loop = MissionLoop(vehicle, strat, p, InProcessWind(vehicle), limits,
                        LoopConfig(takeoff_timeout_s=TAKEOFF_TIMEOUT_S, land_at_end=False), seed=seed,
-                       on_tick=score.tick)  # fmt: skip
+                       on_tick=score.tick, obstacles=obstacles)  # fmt: skip
     res = asyncio.run(loop.run())
     home = np.array(res.home_ned if res.home_ned is not None else np.zeros(3), dtype=float)
     start_dist = float(np.hypot(*(src[0:2] - home[0:2])))

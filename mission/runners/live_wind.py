@@ -1,181 +1,113 @@
 """Wind sources of a mission flown over MAVLink: the live UKF (``estimated``), WIND_COV (``mavlink``), none.
 
-``estimated``: the paper's UKF runs on the vehicle's telemetry in a worker thread, never on the
-asyncio loop that keeps the setpoints and the safety checks alive. MAVSDK's callback thread only
-appends the estimator's inputs to a bounded queue (:meth:`EstimatedLiveWind.sink`); when the
-filter falls behind (a loaded machine), IMU samples are first decimated 2:1 and, with the queue
-full, the oldest inputs are dropped; both are counted and reported. The filter is paused on the
-ground and while landing and cold-started at lift-off (:mod:`estimator.ground_gate`), and state
-messages are held until the IMU has caught up with them (an autopilot sends its state ahead of
-the raw IMU samples of the same interval).
+``estimated``: the paper's UKF on the vehicle's telemetry, run by the estimator's own live core
+(:class:`~estimator.live.LiveCore`: lock-on, input selection and the inputs line, the ground gate,
+clock resets, rotor speeds from ESC telemetry or from actuator outputs through the motor model) in
+a worker thread behind a bounded queue (:class:`~estimator.worker.EstimatorWorker`: IMU samples
+thinned, then the oldest inputs dropped when the filter falls behind, all counted). MAVSDK's
+callback thread only submits messages, so the asyncio loop that keeps the setpoints and the safety
+checks alive never runs the filter. Until the filter has made an estimate there is no wind: the
+mission loop aborts with the missing inputs named rather than fly with a zero wind.
 
 Conventions: SI, NED, wind = air-mass velocity NED; vehicle time.
 """
 
 from __future__ import annotations
 
-import math
-import threading
-from collections import Counter, deque
 from typing import Any
 
 import numpy as np
 
-from estimator.ground_gate import GroundGate, withheld
-from estimator.mavlink_adapter import MavlinkWindAdapter
-from estimator.ukf import WindEstimator
+from estimator.live import LiveConfig, LiveCore
+from estimator.mavlink_decode import PREFERENCE
+from estimator.worker import EstimatorWorker
 from mission.safety import Abort, EstimatorWatch
 from mission.strategies.base import WindInfo
-from mission.vehicle import VehicleState
 from mission.wind_source import UpwindFilter
 from vehicle.params import VehicleParams
 
-#: Messages the estimator reads (the IMU: HIL_SENSOR from windseek's SITL, HIGHRES_IMU from PX4).
-ESTIMATOR_MESSAGES = ("HIL_SENSOR", "HIGHRES_IMU", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "ESC_STATUS")
-#: Inputs queued for the worker at most; above DECIMATE_AT every other IMU sample is skipped.
-QUEUE_MAX = 4096
-DECIMATE_AT = 1024
+#: Messages the live core reads: every input it may choose, and what it needs for lock-on, the
+#: ground gate and clock resets.
+ESTIMATOR_MESSAGES = tuple(sorted({m for names in PREFERENCE.values() for m in names}
+                                  | {"HEARTBEAT", "EXTENDED_SYS_STATE", "SYSTEM_TIME", "ESC_INFO"}))  # fmt: skip
 
 
 class _Msg:
-    """A pymavlink-like view of a mavlink_direct message: fields as attributes, ``get_type()``."""
+    """A pymavlink-like view of a mavlink_direct message: fields as attributes, the type and the sender."""
 
-    def __init__(self, mtype: str, fields: dict[str, Any]) -> None:
+    def __init__(self, mtype: str, fields: dict[str, Any], sysid: int, compid: int) -> None:
         self.__dict__.update(fields)
-        self._mtype = mtype
+        self._mtype, self._src = mtype, (sysid, compid)
 
     def get_type(self) -> str:
         return self._mtype
 
+    def get_srcSystem(self) -> int:  # noqa: N802 - pymavlink's name
+        return self._src[0]
+
+    def get_srcComponent(self) -> int:  # noqa: N802 - pymavlink's name
+        return self._src[1]
+
 
 class EstimatedLiveWind:
-    """``estimated``: the live UKF in a worker thread (see the module docstring)."""
+    """``estimated``: the live UKF in a worker thread (see the module docstring).
+
+    Build it before the first telemetry arrives (loading the kernels holds the GIL briefly)."""
 
     mode = "estimated"
 
-    def __init__(self, vehicle_params: VehicleParams, upwind: UpwindFilter, state: VehicleState) -> None:
-        self.params = vehicle_params
+    def __init__(self, vehicle_params: VehicleParams, upwind: UpwindFilter, target_system: int | None = None,
+                 max_queue: int = 2000, esc_component: int | None = None) -> None:  # fmt: skip
+        self.core = LiveCore(LiveConfig(vehicle=vehicle_params, target_system=target_system,
+                                        esc_component=esc_component))  # fmt: skip
+        self.worker = EstimatorWorker(self.core, max_queue=max_queue)
+        self.worker.start()
         self.upwind = upwind
-        self.state = state
-        self.counters: Counter[str] = Counter()
-        self.estimator = WindEstimator(vehicle_params)
-        self.adapter = MavlinkWindAdapter(self.estimator)
         self.watch = EstimatorWatch()
-        self.imu_message = ""
-        self._highres_t0 = math.nan
-        self._queue: deque[tuple[str, dict[str, Any], float, int]] = deque()
-        self._cv = threading.Condition()
-        self._stop = False
-        self._skip = False
-        self._gate = GroundGate()
-        self._pending: list[_Msg] = []
-        self._snapshot: tuple[float | None, np.ndarray, np.ndarray] = (None, np.zeros(3), np.eye(3) * 100.0)
-        self._thread = threading.Thread(target=self._work, name="wind-estimator", daemon=True)
-        self._thread.start()
 
-    # ------------------------------------------------------------------ MAVSDK's thread
-    def sink(self, name: str, fields: dict[str, Any], t: float) -> None:
-        """Queue one estimator input (cheap; never blocks)."""
-        if name not in ESTIMATOR_MESSAGES or not self._claim_imu(name, t):
-            return
-        with self._cv:
-            q = self._queue
-            if name == self.imu_message and len(q) > DECIMATE_AT:
-                self._skip = not self._skip
-                if self._skip:
-                    self.counters["imu_decimated"] += 1
-                    return
-            if len(q) >= QUEUE_MAX:
-                q.popleft()
-                self.counters["dropped"] += 1
-            q.append((name, fields, t, self.state.landed))
-            self._cv.notify()
-
-    def _claim_imu(self, name: str, t: float) -> bool:
-        """HIL_SENSOR carries every IMU sample (windseek's SITL); HIGHRES_IMU (PX4) is the fallback
-        when no HIL_SENSOR has come within 1 s of it. The first claimed stays."""
-        if name not in ("HIL_SENSOR", "HIGHRES_IMU") or name == self.imu_message:
-            return True
-        if self.imu_message or not math.isfinite(t):
-            return False
-        if name == "HIGHRES_IMU":
-            self._highres_t0 = t if math.isnan(self._highres_t0) else self._highres_t0
-            if t - self._highres_t0 < 1.0:
-                return False
-        self.imu_message = name
-        return True
-
-    # ------------------------------------------------------------------ the worker
-    def _work(self) -> None:
-        while True:
-            with self._cv:
-                while not self._queue and not self._stop:
-                    self._cv.wait(0.5)
-                if self._stop:
-                    return
-                batch = list(self._queue)
-                self._queue.clear()
-            for name, fields, _t, landed in batch:
-                try:
-                    self._feed(name, fields, landed)
-                except Exception:  # noqa: BLE001 - a bad input is counted, the worker goes on
-                    self.counters["input_errors"] += 1
-            est = self.estimator
-            self._snapshot = (est.t, est.wind_ned.copy(), est.wind_cov.copy())
-
-    def _feed(self, name: str, fields: dict[str, Any], landed: int) -> None:
-        pend = self._pending
-        action = self._gate.admit(withheld(landed))
-        if action == "pause":
-            pend.clear()
-            return
-        if action == "restart":
-            self.estimator = WindEstimator(self.params)
-            self.adapter = MavlinkWindAdapter(self.estimator)
-            self.counters["restarts"] += 1
-        if name == "LOCAL_POSITION_NED":
-            pend.append(_Msg(name, fields))
-        else:
-            self.adapter.handle(_Msg(name, fields))
-        est_t = self.estimator.t
-        while pend and (est_t is None or float(getattr(pend[0], "time_boot_ms", 0)) * 1e-3 <= est_t + 1e-9
-                        or len(pend) > 30):  # no IMU flowing (1 s at 30 Hz): do not hold velocities forever
-            self.adapter.handle(pend.pop(0))
+    def sink(self, name: str, fields: dict[str, Any], t: float, sysid: int = 1, compid: int = 1) -> None:
+        """One message from MAVSDK's thread (never blocks)."""
+        if name in ESTIMATOR_MESSAGES:
+            self.worker.submit(_Msg(name, fields, sysid, compid))
 
     def stop(self) -> None:
-        with self._cv:
-            self._stop = True
-            self._cv.notify()
-        self._thread.join(timeout=5.0)
+        self.worker.stop()
 
-    # ------------------------------------------------------------------ the loop's view
     def info(self, t: float) -> WindInfo:
-        est_t, w, cov = self._snapshot
-        if est_t is None:
+        snap = self.worker.snapshot()
+        if not snap.ready:
             return self.upwind.make(np.zeros(3), np.eye(3) * 100.0)
-        return self.upwind.make(w, cov)
+        return self.upwind.make(snap.wind_ned, snap.cov_ned)
 
     def ready(self) -> bool:
-        return self._snapshot[0] is not None
+        return self.worker.snapshot().ready
 
     def missing(self) -> str:
-        lack = [g for g in ("imu", "attitude", "velocity", "rotors") if g not in self.adapter.sources]
-        return "no " + ", ".join(lack) + " input seen" if lack else "inputs seen but no sample accepted"
+        return self.worker.snapshot().status
 
     def fault(self, t: float) -> Abort | None:
-        est_t, w, cov = self._snapshot
-        if est_t is None:
+        snap = self.worker.snapshot()
+        if not snap.ready:
             return None
-        est = self.estimator
-        return self.watch.check(t, w, cov, dict(est.rejected), est.accepted["imu"])
+        return self.watch.check(t, snap.wind_ned, snap.cov_ned, dict(snap.rejected), snap.accepted.get("imu", 0))
 
     def describe(self) -> str:
-        return f"the live UKF on {self.imu_message or 'the IMU'} telemetry (worker thread)"
+        snap = self.worker.snapshot()
+        line = snap.inputs_line or "the live UKF on the telemetry (worker thread)"
+        return f"{line}; {snap.model_note}" if snap.model_note else line
 
     def report(self) -> dict[str, Any]:
-        est = self.estimator
-        return {"accepted": dict(est.accepted), "rejected": dict(est.rejected), "imu_message": self.imu_message,
-                "span_s": est.span_s, **dict(self.counters)}  # fmt: skip
+        """The estimator's figures at the end of the mission (stops the worker: the core is then ours)."""
+        self.stop()
+        snap, c = self.worker.snapshot(), self.worker.counts
+        summary = self.core.summary()
+        return {"accepted": dict(snap.accepted), "rejected": dict(snap.rejected),
+                "imu_message": summary["inputs"].get("imu", ""), "inputs": summary["inputs"],
+                "inputs_line": summary["inputs_line"], "model_note": summary["model_note"],
+                "span_s": float(self.core.est.span_s), "restarts": snap.restarts,
+                "imu_decimated": int(c["decimated_imu"]), "dropped": int(c["dropped_imu"] + c["dropped_other"]),
+                "queue_high_water": int(c["high_water"]), "errors": int(c["errors"]),
+                "wind_ned_m_s": summary["wind_ned_m_s"]}  # fmt: skip
 
 
 class WindCovWind:

@@ -30,7 +30,8 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+
+import numpy as np
 
 from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
@@ -66,7 +67,8 @@ class MissionConfig:
     hold_s: vehicle seconds to hold before landing after an abort.
     link_grace_s: wall seconds to wait for the link to come back after a loss.
     speed_hint: the simulator's speed factor, if known: wall-clock waits are divided by it.
-    esc_component: rotor telemetry only from this component (158 with ``windseek sitl --px4``); None: any.
+    esc_component: the estimator's rotor telemetry from this component (158 with ``windseek sitl --px4``);
+        None: the autopilot's own.
     say: where the runner's lines go (default print).
     """
 
@@ -100,29 +102,35 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
         params = replace(params, altitude_m=float(cfg.altitude_m))
     wall0 = time.monotonic()
     link = LinkConfig(cfg.connect, cfg.connect_timeout_s, cfg.health_timeout_s, cfg.limits.link_timeout_s,
-                      cfg.speed_hint, esc_component=cfg.esc_component)  # fmt: skip
+                      cfg.speed_hint)  # fmt: skip
     estimated: EstimatedLiveWind | None = None
     extra: tuple[str, ...] = ()
     sink = None
     upwind = UpwindFilter(params)
-    vehicle_box: dict[str, Any] = {}
     if cfg.wind == "estimated":
         extra = ESTIMATOR_MESSAGES
-        sink = _lazy_sink(vehicle_box)
+        estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind,  # before any telemetry arrives
+                                      esc_component=cfg.esc_component)  # fmt: skip
+        sink = estimated.sink
     elif cfg.wind == "mavlink":
         extra = ("WIND_COV",)
     try:
         async with MavsdkVehicle(link, cfg.say, sink, extra) as v:
-            if cfg.wind == "estimated":
-                estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind, v.state)
-                vehicle_box["wind"] = estimated
             wind: MissionWind = estimated or (WindCovWind(v, upwind) if cfg.wind == "mavlink" else NoLiveWind())
             loop = MissionLoop(v, make_strategy(cfg.strategy), params, wind, cfg.limits,
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
                                seed=cfg.seed)  # fmt: skip
             loop.result.strategy = cfg.strategy
             await _ensure_datalink_failsafe(v, loop.say)
-            res = await loop.run()
+            lags: list[float] = []
+            probe = asyncio.create_task(_loop_lag(lags))
+            try:
+                res = await loop.run()
+            finally:
+                probe.cancel()
+            if lags:
+                res.loop_lag_max_ms = round(max(lags), 1)
+                res.loop_lag_p99_ms = round(float(np.percentile(lags, 99)), 1)
             res.estimator.update({f"link_{k}": n for k, n in v.counters.items()})
     finally:
         if estimated is not None:
@@ -131,16 +139,13 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     return res
 
 
-def _lazy_sink(box: dict[str, Any]) -> Callable[[str, dict[str, Any], float], None]:
-    """The estimator's sink before the estimator exists (the connection comes first): inputs that
-    arrive before it are not wanted anyway (the vehicle is on the ground)."""
-
-    def sink(name: str, fields: dict[str, Any], t: float) -> None:
-        w = box.get("wind")
-        if w is not None:
-            w.sink(name, fields, t)
-
-    return sink
+async def _loop_lag(lags: list[float], period_s: float = 0.02) -> None:
+    """How late the event loop wakes from ``period_s`` sleeps (ms), appended to ``lags`` (bounded)."""
+    while True:
+        t0 = time.monotonic()
+        await asyncio.sleep(period_s)
+        if len(lags) < 200_000:
+            lags.append(max(0.0, (time.monotonic() - t0 - period_s) * 1e3))
 
 
 async def _ensure_datalink_failsafe(v: MavsdkVehicle, say: Callable[[str], None]) -> None:

@@ -42,15 +42,13 @@ from wire.names import publish
 STATE_MESSAGES = ("HEARTBEAT", "EXTENDED_SYS_STATE", "LOCAL_POSITION_NED", "ATTITUDE_QUATERNION",
                   "NAMED_VALUE_FLOAT", "STATUSTEXT")  # fmt: skip
 MAV_AUTOPILOT_INVALID = 8
-#: Rotor telemetry messages (filtered by ``LinkConfig.esc_component``).
-ROTOR_MESSAGES = ("ESC_STATUS", "RAW_RPM", "ESC_INFO")
 MAV_STATE_EMERGENCY = 6
 #: Mission status queued for the wire at most (the oldest are dropped, counted).
 OUTBOX_MAX = 64
 #: A jump back of the vehicle clock larger than this is a reboot / clock reset [s].
 CLOCK_RESET_S = 5.0
 
-Sink = Callable[[str, dict[str, Any], float], None]
+Sink = Callable[[str, dict[str, Any], float, int, int], None]
 
 
 @dataclass
@@ -58,7 +56,7 @@ class LinkConfig:
     """connect: MAVSDK URL; connect_timeout_s / health_timeout_s: wall seconds to wait for a heartbeat /
     for health; link_timeout_s: wall seconds without telemetry that count as a loss; speed_hint: the
     simulator's speed factor (wall-clock waits are divided by it); command_timeout_s: wall seconds
-    a command may take; esc_component: see below."""
+    a command may take."""
 
     connect: str
     connect_timeout_s: float = 20.0
@@ -66,9 +64,6 @@ class LinkConfig:
     link_timeout_s: float = 3.0
     speed_hint: float = 1.0
     command_timeout_s: float = 5.0
-    #: Take rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) only from this component of the autopilot's system
-    #: (158: ``windseek sitl --px4``'s ESC telemetry; PX4 SITL's own ESC_STATUS is a placeholder). None: any.
-    esc_component: int | None = None
 
 
 class MavsdkVehicle:
@@ -193,9 +188,6 @@ class MavsdkVehicle:
                 st.t = t
             elif not t < st.t or math.isnan(st.t):
                 st.t = t
-        if name in ROTOR_MESSAGES and self.cfg.esc_component is not None and compid != self.cfg.esc_component:
-            self.counters["rx_esc_other_component"] += 1
-            return
         if name == "NAMED_VALUE_FLOAT" and str(f.get("name", "")).rstrip("\x00") == "CHEM":
             if self.chem_component is None:
                 self.chem_component = compid
@@ -203,7 +195,7 @@ class MavsdkVehicle:
                 self.counters["rx_chem_relayed"] += 1
                 return
         if self.sink is not None:
-            self.sink(name, f, t)
+            self.sink(name, f, t, sysid, compid)
         if compid != self.target[1] and name not in ("NAMED_VALUE_FLOAT", "WIND_COV", "STATUSTEXT"):
             self.counters["rx_other_component"] += 1
             return

@@ -47,7 +47,7 @@ class BuiltinAutopilot:
     def advance(self, world: World, n: int) -> int:
         ph = world.phys
         return advance_controlled(n, world.tick, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div,
-                                  ph.rows, ph.fb, world.wind_kernel, self.fc.sp, self.gains, self.cs,
+                                  ph.rows, ph.fb, world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs,
                                   self.accel_sp)  # fmt: skip
 
     # ------------------------------------------------------------------ set-up
@@ -70,7 +70,8 @@ class BuiltinAutopilot:
         lim = self.gains[GAIN_NAMES.index("vel_int_lim")]
         for _ in range(int(round(TRIM_S / ph.dt))):
             advance_controlled(1, 0, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div, rows, ph.fb,
-                               world.wind_kernel, self.fc.sp, self.gains, self.cs, self.accel_sp)  # fmt: skip
+                               world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs,
+                               self.accel_sp)  # fmt: skip
             # The stand measures the acceleration it prevents and trims the velocity-loop
             # integrators against it, so the release finds the vehicle already leaning in.
             accel = (ph.x[3:6] - hold[3:6]) / ph.dt

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from sitl.autopilot.controller import F_IDLE, SP_FLAGS, control
-from sitl.world.kernel import FLAG_CRASHED, physics_tick
+from sitl.world.kernel import FLAG_CRASHED, Obstacles, physics_tick
 from sitl.world.wind.kernel import WindKernel, wind_velocity
 from vehicle.params import P_WMIN
 
@@ -21,7 +21,7 @@ from vehicle.params import P_WMIN
 @njit(cache=True)
 def advance_controlled(
     n: int, tick0: int, dt: float, x: np.ndarray, flags: np.ndarray, p: np.ndarray, crash_speed: float,
-    imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel,
+    imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel, obs: Obstacles,
     sp: np.ndarray, gains: np.ndarray, cs: np.ndarray, accel_sp: np.ndarray,
 ) -> int:  # fmt: skip
     """``n`` physics ticks from ``tick0`` flown by the controller on setpoint ``sp`` (held over
@@ -40,5 +40,5 @@ def advance_controlled(
             cs[:] = 0.0
         else:
             w_cmd = control(x, sp, gains, cs, p, dt, accel_sp)
-        nrow = physics_tick(tick, dt, x, w_cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb)
+        nrow = physics_tick(tick, dt, x, w_cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
     return nrow

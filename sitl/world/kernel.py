@@ -15,10 +15,13 @@ command (rad/s). ``flags`` = [on_ground, crashed, largest touchdown speed (m/s),
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from sitl.world.dynamics import rk4_step
+from sitl.world.urban.geometry import building_at
 from sitl.world.wind.kernel import WindKernel, wind_velocity
 
 T_TIME = 0
@@ -35,15 +38,38 @@ N_TRUTH = 28
 FLAG_ON_GROUND, FLAG_CRASHED, FLAG_TOUCHDOWN_SPEED, FLAG_COLLISIONS = 0, 1, 2, 3
 
 
+class Obstacles(NamedTuple):
+    """Buildings as prisms (the layout of :class:`sitl.world.urban.geometry.BuildingArrays`): footprint
+    vertices (V, 2) NED m, per-building vertex offsets (B + 1,), roof heights (B,) m above ground,
+    footprint boxes (B, 4). No buildings: empty arrays."""
+
+    verts: np.ndarray
+    offsets: np.ndarray
+    heights: np.ndarray
+    bbox: np.ndarray
+
+
+NO_OBSTACLES = Obstacles(np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0), np.zeros((0, 4)))
+
+
 @njit(cache=True)
 def physics_tick(
     tick: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, wind: np.ndarray, flags: np.ndarray,
     p: np.ndarray, crash_speed: float, imu_div: int, rows: np.ndarray, nrow: int, fb: np.ndarray,
+    obs: Obstacles,
 ) -> int:  # fmt: skip
     """One physics tick in place with the rotor command ``w_cmd`` (rad/s) and the wind ``wind``
-    (NED, m/s) held over it. Returns the number of truth rows written so far (``nrow`` + 0 or 1)."""
+    (NED, m/s) held over it. Returns the number of truth rows written so far (``nrow`` + 0 or 1).
+    A step that would end inside a building is a crash: the vehicle stays where it hit, stopped."""
     on_ground = flags[FLAG_ON_GROUND] != 0.0
     xn, og, vtd = rk4_step(x, w_cmd, wind, p, dt, on_ground, fb)
+    if obs.heights.shape[0] > 0 and building_at(xn[0], xn[1], -xn[2], obs.verts, obs.offsets, obs.heights,
+                                                obs.bbox) >= 0:  # fmt: skip
+        xn = x.copy()
+        xn[3:6] = 0.0
+        xn[10:13] = 0.0
+        flags[FLAG_CRASHED] = 1.0
+        flags[FLAG_COLLISIONS] += 1.0
     if tick % imu_div == 0:
         r = rows[nrow]
         r[0] = tick * dt
@@ -68,7 +94,7 @@ def physics_tick(
 @njit(cache=True)
 def advance_commanded(
     n: int, tick0: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, flags: np.ndarray, p: np.ndarray,
-    crash_speed: float, imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel,
+    crash_speed: float, imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel, obs: Obstacles,
 ) -> int:  # fmt: skip
     """``n`` physics ticks from tick ``tick0`` holding the commanded rotor speeds ``w_cmd`` (rad/s);
     a crashed vehicle's rotors get zero. Returns the number of truth rows written to ``rows``."""
@@ -78,5 +104,5 @@ def advance_commanded(
         tick = tick0 + k
         wind = wind_velocity(tick * dt, x[0:3], wk)
         cmd = stopped if flags[FLAG_CRASHED] != 0.0 else w_cmd
-        nrow = physics_tick(tick, dt, x, cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb)
+        nrow = physics_tick(tick, dt, x, cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
     return nrow

@@ -33,12 +33,15 @@ import numpy as np
 from sitl.scenario import Scenario
 from sitl.world.dynamics import N_STATE
 from sitl.world.kernel import (
+    FLAG_COLLISIONS,
     FLAG_CRASHED,
     FLAG_ON_GROUND,
     N_TRUTH,
+    NO_OBSTACLES,
     T_RATES,
     T_ROTORS,
     T_SPECIFIC_FORCE,
+    Obstacles,
     advance_commanded,
 )
 from sitl.world.plume.part import CHEM_OUTPUT, PlumePart
@@ -78,6 +81,7 @@ class PhysicsArrays:
     params: the vehicle parameter array; crash_speed: touchdown speed that is a crash, m/s.
     rows: truth-row buffer (one slow tick of IMU samples); fb: specific force at the last tick.
     imu_div: physics ticks per IMU sample; dt: physics step, s.
+    obstacles: the buildings (a vehicle that enters one has crashed).
     """
 
     x: np.ndarray
@@ -88,6 +92,7 @@ class PhysicsArrays:
     fb: np.ndarray
     imu_div: int
     dt: float
+    obstacles: Obstacles = NO_OBSTACLES
 
 
 class Pilot(Protocol):
@@ -122,7 +127,7 @@ class RotorCommand:
     def advance(self, world: World, n: int) -> int:
         ph = world.phys
         return advance_commanded(n, world.tick, ph.dt, ph.x, self.speeds, ph.flags, ph.params, ph.crash_speed,
-                                 ph.imu_div, ph.rows, ph.fb, world.wind_kernel)  # fmt: skip
+                                 ph.imu_div, ph.rows, ph.fb, world.wind_kernel, ph.obstacles)  # fmt: skip
 
 
 class World:
@@ -168,13 +173,14 @@ class World:
         self.phys = PhysicsArrays(x=x, flags=flags, params=self.vehicle.as_array(),
                                   crash_speed=float(self.vehicle.crash_speed_m_s),
                                   rows=np.zeros((self.slow_div // imu_div + 2, N_TRUTH)), fb=np.zeros(3),
-                                  imu_div=imu_div, dt=dt)  # fmt: skip
+                                  imu_div=imu_div, dt=dt, obstacles=_obstacles(scenario))  # fmt: skip
         self._imu_count = 0
         self.last_truth = np.zeros(N_TRUTH)
         self.truth_log: list[np.ndarray] | None = [] if record_truth else None
         self.plume: PlumePart | None = None
         if scenario.plume is not None:
-            self.plume = PlumePart(scenario.plume, self.wind, s_extra, scenario.mode_rate_hz)
+            self.plume = PlumePart(scenario.plume, self.wind, s_extra, scenario.mode_rate_hz,
+                                   obstacles=self.phys.obstacles)  # fmt: skip
 
     # ------------------------------------------------------------------ truth
     @property
@@ -229,6 +235,11 @@ class World:
     @property
     def crashed(self) -> bool:
         return bool(self.phys.flags[FLAG_CRASHED])
+
+    @property
+    def collisions(self) -> int:
+        """Physics ticks that would have ended inside a building (each one a crash)."""
+        return int(self.phys.flags[FLAG_COLLISIONS])
 
     @property
     def specific_force(self) -> np.ndarray:
@@ -332,6 +343,16 @@ class World:
         if not self.truth_log:
             return np.zeros((0, N_TRUTH))
         return np.concatenate(self.truth_log)
+
+
+def _obstacles(scenario: Scenario) -> Obstacles:
+    """The scenario's buildings as prisms for the physics loop and the plume (none: empty arrays)."""
+    if scenario.urban is None or not scenario.urban.buildings:
+        return NO_OBSTACLES
+    from sitl.world.urban.geometry import BuildingArrays
+
+    b = BuildingArrays.from_buildings(scenario.urban.buildings)
+    return Obstacles(b.verts, b.offsets, b.heights, b.bbox)
 
 
 def _held_wind_kernel() -> WindKernel:

@@ -22,6 +22,7 @@ from collections import deque
 import numpy as np
 
 from sitl.world.chem_sensor import ChemicalSensor, ChemReading
+from sitl.world.kernel import NO_OBSTACLES, Obstacles
 from sitl.world.plume.config import WindLike
 from sitl.world.plume.gaussian import GaussianPlume
 from sitl.world.plume.puffs import PuffPlume, make_plume
@@ -47,13 +48,14 @@ class PlumePart:
         peak_mg_m3: largest reading so far [mg/m^3].
     """
 
-    def __init__(self, setup: PlumeSetup, wind: WindLike, seed: np.random.SeedSequence, slow_rate_hz: float) -> None:
+    def __init__(self, setup: PlumeSetup, wind: WindLike, seed: np.random.SeedSequence, slow_rate_hz: float,
+                 obstacles: Obstacles = NO_OBSTACLES) -> None:  # fmt: skip
         self.setup = setup
         ss_plume, ss_sensor = seed.spawn(2)
         dt_update = 1.0 / setup.plume.update_rate_hz
         n_warm = round(setup.warmup_s / dt_update)
         t0 = -n_warm * dt_update  # whole update periods, so plume steps stay on the grid
-        self.model: PuffPlume | GaussianPlume = make_plume(setup.plume, wind, ss_plume, t0=t0)
+        self.model: PuffPlume | GaussianPlume = make_plume(setup.plume, wind, ss_plume, t0=t0, obstacles=obstacles)
         for i in range(n_warm):
             # Step between grid times (i - n_warm) * dt so the plume lands on t = 0 exactly
             # (accumulating t0 + i * dt would leave it a rounding error away from 0).
@@ -85,6 +87,10 @@ class PlumePart:
             self.n_samples += 1
             self.n_detected += reading.detected
             self.peak_mg_m3 = max(self.peak_mg_m3, reading.value_mg_m3)
+
+    def puff_array(self) -> np.ndarray | None:
+        """(K, 4) live puffs (x, y, z NED m, r^2 m^2) of the puff model; None for the Gaussian model."""
+        return self.model.puffs if isinstance(self.model, PuffPlume) else None
 
     @property
     def n_puffs(self) -> int:

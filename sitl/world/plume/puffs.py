@@ -11,6 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sitl.world.kernel import NO_OBSTACLES, Obstacles
 from sitl.world.plume.config import G_TO_MG, TWO_PI_POW_1_5, PlumeConfig, WindLike, check_config
 from sitl.world.plume.gaussian import BRIGGS_Y, BRIGGS_Z, GaussianPlume, concentration_slice
 from sitl.world.plume.meander import (
@@ -21,6 +22,7 @@ from sitl.world.plume.meander import (
     frozen_turbulence_variances,
     meander_at,
 )
+from sitl.world.urban.geometry import reflect_many
 
 # ---------------------------------------------------------------------------------- kernels
 # The puff update and the concentration sum are the plume's hot loops (called at the plume
@@ -110,13 +112,17 @@ class PuffPlume:
         wind: WindLike,
         seed: int | np.random.SeedSequence,
         t0: float = 0.0,
+        obstacles: Obstacles = NO_OBSTACLES,
     ):
         """config: plume configuration (validated, ValueError lists the problems);
+        obstacles: buildings the puffs are reflected off (never inside one);
         wind: object with ``mean(t, pos)`` and ``velocity(t, positions)``;
         seed: int or SeedSequence for every random process; t0: initial time [s]."""
         check_config(config)
         self.config = config
         self._wind = wind
+        self._obstacles = obstacles
+        self.reflected = 0  # puff steps mirrored out of a building
         ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         ss_walk, ss_modes_h, ss_modes_v = ss.spawn(3)
         self._rng = np.random.default_rng(ss_walk)
@@ -250,13 +256,27 @@ class PuffPlume:
             scale = np.array([cal_y.meander_sigma, cal_y.meander_sigma, cal_z.meander_sigma])
             noise = self._rng.standard_normal((k, 3))
             mf = self._meander
+            before = phys  # physical positions at the start of the step
             _advance_puffs(
                 self._pos, self._r2, self._unit_meander, refresh, vel, noise, scale,
                 np.array([walk_y, walk_y, walk_z]), growth, h, mf.offset, mf.k, mf.phase, mf.amp,
             )  # fmt: skip
+            if self._obstacles.heights.shape[0]:
+                self._reflect(before)
             self._remove()
         self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
         self._substep_count += 1
+
+    def _reflect(self, before: np.ndarray) -> None:
+        """Puffs whose step ended inside a building mirrored out of it (off the wall or roof they
+        crossed); they continue from there with their altitude unfolded afresh."""
+        after = np.column_stack([self._pos[:, :2], -np.abs(self._pos[:, 2])])
+        out, moved = reflect_many(np.ascontiguousarray(after), np.ascontiguousarray(before), *self._obstacles)
+        if moved:
+            self.reflected += int(moved)
+            changed = np.any(out != after, axis=1)
+            self._pos[changed, 0:2] = out[changed, 0:2]
+            self._pos[changed, 2] = -out[changed, 2]
 
     def _keep(self, mask: np.ndarray | slice) -> None:
         self._pos = self._pos[mask]
@@ -297,10 +317,12 @@ class PuffPlume:
 
 
 def make_plume(
-    config: PlumeConfig, wind: WindLike, seed: int | np.random.SeedSequence, t0: float = 0.0
+    config: PlumeConfig, wind: WindLike, seed: int | np.random.SeedSequence, t0: float = 0.0,
+    obstacles: Obstacles = NO_OBSTACLES,
 ) -> PuffPlume | GaussianPlume:
-    """Build the plume model named by ``config.model`` (ValueError if config is invalid)."""
+    """Build the plume model named by ``config.model`` (ValueError if config is invalid). Buildings
+    reflect the puff model's puffs; the time-averaged Gaussian model does not see them."""
     check_config(config)
     if config.model == "gaussian":
         return GaussianPlume(config, wind, seed, t0)
-    return PuffPlume(config, wind, seed, t0)
+    return PuffPlume(config, wind, seed, t0, obstacles)

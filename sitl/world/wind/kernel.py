@@ -16,6 +16,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from sitl.world.urban.sampling import urban_multiplier_at, urban_wind_at
+
 
 class WindKernel(NamedTuple):
     """Parameters of the built-in wind model as the njit kernels read them.
@@ -30,6 +32,10 @@ class WindKernel(NamedTuple):
     turb_rate: sample rate of the periodic turbulence series, Hz.
     turb_uvw: (M, 3) u', v', w' series, m/s (u' along the mean wind, v' 90 deg to its right,
         w' down), periodic.
+    urban_on: the mean wind is the solved urban field (:mod:`sitl.world.urban`) instead of the
+        schedule and profile; then ``ugp``, ``u_n``, ``v_e``, ``w_d``, ``uwp``, ``tm`` and the building
+        arrays ``verts``, ``offsets``, ``heights``, ``bbox`` are its arrays (empty otherwise), and the
+        turbulence is scaled by the field's multiplier ``tm`` at the point (0 inside buildings).
     """
 
     sched_t: np.ndarray
@@ -41,6 +47,17 @@ class WindKernel(NamedTuple):
     taylor: bool
     turb_rate: float
     turb_uvw: np.ndarray
+    urban_on: bool = False
+    ugp: np.ndarray = np.zeros(5)
+    u_n: np.ndarray = np.zeros((0, 0, 0))
+    v_e: np.ndarray = np.zeros((0, 0, 0))
+    w_d: np.ndarray = np.zeros((0, 0, 0))
+    uwp: np.ndarray = np.zeros(6)
+    tm: np.ndarray = np.zeros((0, 0, 0))
+    verts: np.ndarray = np.zeros((0, 2))
+    offsets: np.ndarray = np.zeros(1, dtype=np.int64)
+    heights: np.ndarray = np.zeros(0)
+    bbox: np.ndarray = np.zeros((0, 4))
 
 
 @njit(cache=True)
@@ -73,9 +90,19 @@ def _mean_components(t: float, z: float, w: WindKernel) -> tuple[float, float, f
 
 
 @njit(cache=True)
+def _urban_mean(x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float, float, float]:
+    """Like :func:`_mean_components` for the urban field: (mean n, e, d; reference-height n, e)."""
+    mn, me, md = urban_wind_at(x, y, z, w.ugp, w.u_n, w.v_e, w.w_d, w.uwp, w.verts, w.offsets, w.heights, w.bbox)
+    return mn, me, md, w.uwp[0] * w.uwp[4], w.uwp[0] * w.uwp[5]
+
+
+@njit(cache=True)
 def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float]:
     """Air-mass velocity (m/s, NED) at NED point (x, y, z) and time t, as three floats."""
-    mn, me, md, rn, re = _mean_components(t, z, w)
+    if w.urban_on:
+        mn, me, md, rn, re = _urban_mean(x, y, z, w)
+    else:
+        mn, me, md, rn, re = _mean_components(t, z, w)
     if not w.turb_on:
         return mn, me, md
     # The frozen field is advected by the reference-height mean wind, one speed for all
@@ -105,6 +132,9 @@ def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> t
     up = uvw[i, 0] + frac * (uvw[j, 0] - uvw[i, 0])
     vp = uvw[i, 1] + frac * (uvw[j, 1] - uvw[i, 1])
     wp = uvw[i, 2] + frac * (uvw[j, 2] - uvw[i, 2])
+    if w.urban_on:  # stronger in wakes and canyons, weaker in sheltered air, none inside a building
+        m = urban_multiplier_at(x, y, z, w.ugp, w.tm, w.verts, w.offsets, w.heights, w.bbox)
+        up, vp, wp = m * up, m * vp, m * wp
     # u' along e, v' along e rotated +90 deg about down, w' along NED down.
     return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
 
@@ -112,7 +142,10 @@ def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> t
 @njit(cache=True)
 def wind_mean(t: float, pos: np.ndarray, w: WindKernel) -> np.ndarray:
     """Mean (non-turbulent) air-mass velocity (3,) m/s NED at NED ``pos`` (3,) m, time ``t`` s."""
-    mn, me, md, _, _ = _mean_components(t, pos[2], w)
+    if w.urban_on:
+        mn, me, md, _, _ = _urban_mean(pos[0], pos[1], pos[2], w)
+    else:
+        mn, me, md, _, _ = _mean_components(t, pos[2], w)
     out = np.empty(3)
     out[0] = mn
     out[1] = me

@@ -59,7 +59,14 @@ def _steady(steady: SteadyWind, turbulence: KaimalTurbulence | None, options: di
     return WindField(steady, turbulence, seed)
 
 
-WIND_MODELS: dict[str, WindFactory] = {"steady": _steady}
+def _urban(steady: SteadyWind, turbulence: KaimalTurbulence | None, options: dict[str, Any],
+           seed: np.random.SeedSequence) -> WindModel:  # fmt: skip
+    from sitl.world.urban.wind_model import make_urban_wind  # the solver's dependencies only when used
+
+    return make_urban_wind(steady, turbulence, options, seed)
+
+
+WIND_MODELS: dict[str, WindFactory] = {"steady": _steady, "urban": _urban}
 
 
 def register_wind_model(name: str, factory: WindFactory) -> None:

@@ -1,4 +1,4 @@
-"""In-process adapter: the simulator's sensor outputs feed the wind estimator in lockstep.
+"""The wind estimator flown in lockstep on the simulator (``windseek estimate``): the sensor outputs feed it.
 
 Per IMU sample (250 Hz, time order): the latest ESC rotor speeds are held (50 Hz), the
 attitude measurement is set, then the IMU sample predicts and updates the filter. GNSS fixes
@@ -21,20 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from estimator.models import AhrsErrorModel, model_params
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import EstimatorConfig, WindEstimator
 from sitl.scenario import Scenario
 from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_TIME, T_WIND, Simulation
 from vehicle.frames import quat_mul
-from vehicle.params import VehicleParams
-
-
-@dataclass(frozen=True)
-class AhrsErrorModel:
-    """Attitude measurement error: rotation vector (body axes) as a Gauss-Markov process."""
-
-    sigma_deg: float = 0.5
-    tau_s: float = 20.0
 
 
 @dataclass
@@ -50,15 +42,6 @@ class RunLog:
     wind_true: np.ndarray  # (K, 3) air-mass velocity at the vehicle incl. turbulence
     us_per_step: float
     rejected: dict[str, int] = field(default_factory=dict)
-
-
-def model_params(vehicle: VehicleParams, seed: int, perturb: bool) -> VehicleParams:
-    """The parameters the estimator uses: exact, or drawn inside the Table 5 95 % intervals
-    plus mass (+-5 %) and inertia (+-10 %) errors, seeded by ``seed``."""
-    if not perturb:
-        return vehicle
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x57D]))
-    return vehicle.perturbed(rng)
 
 
 class InProcessRunner:
@@ -119,8 +102,11 @@ class InProcessRunner:
 
     def _consume(self, out: dict[str, list]) -> None:
         sim = self.sim
-        rows = sim.truth_log[self._truth_idx:]
-        self._truth_idx = len(sim.truth_log)
+        log = sim.truth_log
+        if log is None:
+            raise RuntimeError("the simulation records no truth (record_truth=False)")
+        rows = log[self._truth_idx :]
+        self._truth_idx = len(log)
         truth = np.concatenate(rows) if rows else np.zeros((0, 28))
         esc = list(out["esc"])
         self._pending_gnss.extend(out["gnss"])

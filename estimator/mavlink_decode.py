@@ -1,0 +1,116 @@
+"""MAVLink estimator inputs decoded to SI, FRD body / NED world: one place for every adapter.
+
+Messages are pymavlink-like objects (``get_type()`` and fields as attributes). Each function
+returns the time stamp on the autopilot's boot clock (s) and the value, or None when the message
+carries nothing usable (a non-finite attitude, a GPS fix below 3-D, an unknown velocity).
+
+Units on the wire (MAVLink common.xml, checked against ArduPilot's senders for RAW_IMU):
+
+- HIL_SENSOR, HIGHRES_IMU: m/s^2 and rad/s, time_usec. SCALED_IMU: mG and mrad/s, time_boot_ms.
+  RAW_IMU is "raw" in the XML; ArduPilot (the autopilot that sends it) fills it with mG and mrad/s
+  (``accel * 1000 / GRAVITY_MSS``, ``gyro * 1000``) and a boot-time time_usec, decoded as such.
+- ATTITUDE_QUATERNION: q1..q4 = [w, x, y, z] body FRD -> NED. ATTITUDE: roll, pitch, yaw (rad, 3-2-1).
+- LOCAL_POSITION_NED: vx, vy, vz m/s. GLOBAL_POSITION_INT: cm/s. GPS_RAW_INT: vel cm/s and cog
+  cdeg (horizontal only; 65535 = unknown).
+- ESC_STATUS: rpm (project dialect, ``index`` = first ESC of the message); RAW_RPM: one sensor
+  (``index``) per message, frequency in rpm, no time stamp.
+- ACTUATOR_OUTPUT_STATUS: actuator[32] floats in the output driver's units (PX4: PWM us,
+  1000-2000 in SITL/SIH); SERVO_OUTPUT_RAW: servo1..16_raw, PWM us. See ``motor_output``.
+
+Time stamps above :data:`MAX_BOOT_TIME_S` are on a UNIX or GPS epoch (GPS_RAW_INT, RAW_IMU and
+SERVO_OUTPUT_RAW may carry one), not the boot clock: :func:`boot_time_s` returns None for them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from vehicle.frames import euler_to_quat
+
+G0 = 9.80665  # m/s^2 per g (MAVLink mG)
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+#: A boot clock above this (s, ~116 days) is an epoch time stamp, not time since boot.
+MAX_BOOT_TIME_S = 1e7
+
+#: Input groups and their message types, best first (the best one streaming is used).
+PREFERENCE: dict[str, tuple[str, ...]] = {
+    "imu": ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"),
+    "attitude": ("ATTITUDE_QUATERNION", "ATTITUDE"),
+    "velocity": ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"),
+    "rotors": ("ESC_STATUS", "RAW_RPM", "ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"),
+}
+#: Message type -> input group.
+GROUP_OF: dict[str, str] = {m: g for g, names in PREFERENCE.items() for m in names}
+#: Rotor-speed sources that are commands (through the motor model), not measured speeds.
+COMMAND_TYPES = frozenset({"ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"})
+#: Messages whose time stamp is the autopilot's boot clock (SERVO_OUTPUT_RAW's uint32 us wraps
+#: after 71 min, GPS_RAW_INT's may be an epoch: neither is used to follow the clock).
+BOOT_CLOCK_TYPES = frozenset({"HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU", "ATTITUDE_QUATERNION",
+                              "ATTITUDE", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "ESC_STATUS",
+                              "ACTUATOR_OUTPUT_STATUS", "SYSTEM_TIME"})  # fmt: skip
+
+
+def stamp_s(msg: Any) -> float | None:
+    """The message's own time stamp in seconds (time_usec or time_boot_ms), or None."""
+    if hasattr(msg, "time_usec"):
+        return float(msg.time_usec) * 1e-6
+    if hasattr(msg, "time_boot_ms"):
+        return float(msg.time_boot_ms) * 1e-3
+    return None
+
+
+def boot_time_s(msg: Any) -> float | None:
+    """The message's time on the autopilot's boot clock (s), or None (no stamp, or an epoch stamp)."""
+    t = stamp_s(msg)
+    return t if t is not None and 0.0 <= t < MAX_BOOT_TIME_S else None
+
+
+def imu(msg: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(specific force FRD m/s^2, body rates FRD rad/s) of an IMU message."""
+    acc = np.array([msg.xacc, msg.yacc, msg.zacc], dtype=float)
+    gyr = np.array([msg.xgyro, msg.ygyro, msg.zgyro], dtype=float)
+    if msg.get_type() in ("SCALED_IMU", "RAW_IMU"):
+        return acc * (G0 / 1000.0), gyr * 1e-3
+    return acc, gyr
+
+
+def attitude(msg: Any) -> np.ndarray | None:
+    """Attitude quaternion [w, x, y, z] body FRD -> NED, or None for non-finite Euler angles."""
+    if msg.get_type() == "ATTITUDE_QUATERNION":
+        return np.array([msg.q1, msg.q2, msg.q3, msg.q4], dtype=float)
+    vals = (msg.roll, msg.pitch, msg.yaw)
+    if not all(math.isfinite(v) for v in vals):
+        return None
+    return np.asarray(euler_to_quat(*vals), dtype=float)
+
+
+def velocity(msg: Any, min_gps_fix: int = 3) -> np.ndarray | None:
+    """NED ground velocity (m/s): 3 components, or 2 (north, east) from GPS_RAW_INT; None if unusable."""
+    mtype = msg.get_type()
+    if mtype == "LOCAL_POSITION_NED":
+        return np.array([msg.vx, msg.vy, msg.vz], dtype=float)
+    if mtype == "GLOBAL_POSITION_INT":
+        return np.array([msg.vx, msg.vy, msg.vz], dtype=float) * 0.01
+    if msg.fix_type < min_gps_fix or msg.vel == 65535 or msg.cog == 65535:
+        return None
+    speed = msg.vel * 0.01
+    cog = math.radians(msg.cog * 0.01)
+    return np.array([speed * math.cos(cog), speed * math.sin(cog)])
+
+
+def rotor_telemetry(msg: Any) -> tuple[int, list[float]]:
+    """(index of the first ESC, speeds in rad/s) of ESC_STATUS or RAW_RPM (rpm on the wire)."""
+    if msg.get_type() == "ESC_STATUS":
+        return int(msg.index), [float(r) * RPM_TO_RAD_S for r in msg.rpm]
+    return int(msg.index), [float(msg.frequency) * RPM_TO_RAD_S]
+
+
+def actuator_outputs(msg: Any) -> list[float]:
+    """Raw actuator output values, output 1 first, of ACTUATOR_OUTPUT_STATUS or SERVO_OUTPUT_RAW
+    (servo1..16; the caller keeps port 0, the MAIN outputs the motors are on)."""
+    if msg.get_type() == "ACTUATOR_OUTPUT_STATUS":
+        return [float(v) for v in msg.actuator]
+    return [float(getattr(msg, f"servo{i}_raw", 0)) for i in range(1, 17)]

@@ -1,0 +1,106 @@
+"""The estimator's force model as numba kernels: specific force, process step, accelerometer model.
+
+The force model is the simulator's own ``vehicle.rotor_model.rotor_wrench`` (paper Eq. 40-46),
+called from here, so the estimator and the simulator cannot drift apart. Frames and units: state
+x = [u, v, w] body velocity (FRD, m/s), [W_n, W_e, W_d] wind (air-mass velocity NED, m/s), then
+the optional force scale and accelerometer biases (see :class:`estimator.config.EstimatorConfig`);
+``R`` is the attitude DCM body FRD -> NED, ``rates`` body rates (FRD, rad/s), ``w_rot`` rotor
+speeds (rad/s), ``p`` the flat vehicle parameter array (``vehicle.params``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from vehicle.params import P_G, P_MASS
+from vehicle.rotor_model import rotor_wrench
+
+
+@njit(cache=True)
+def specific_force(
+    x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, i_scale: int, fz_ref: float
+) -> np.ndarray:
+    """Model specific force (FRD, m/s^2) at state x: rotor forces over mass at the airspeed.
+
+    With a force-scale state s = ``x[i_scale]`` (``i_scale >= 0``, dimensionless, 1 =
+    nominal): s * F_x / m, s * F_y / m and F_z / m + (s - 1) * fz_ref, where ``fz_ref`` is the
+    low-passed measured body-z specific force (m/s^2). To first order in s - 1 this is s * F / m
+    (a mass error); the z correction leaves out the fast thrust fluctuations on purpose (see
+    EstimatorConfig.scale_state).
+    """
+    W0, W1, W2 = x[3], x[4], x[5]
+    v_air = np.empty(3)
+    for i in range(3):
+        # R^T W: the wind (NED) seen in body axes.
+        v_air[i] = x[i] - (R[0, i] * W0 + R[1, i] * W1 + R[2, i] * W2)
+    fm = rotor_wrench(v_air, rates, w_rot, np.zeros(4), p)
+    im = 1.0 / p[P_MASS]
+    out = np.empty(3)
+    if i_scale >= 0:
+        sc = x[i_scale]
+        out[0] = fm[0] * im * sc
+        out[1] = fm[1] * im * sc
+        out[2] = fm[2] * im + (sc - 1.0) * fz_ref
+    else:
+        out[0] = fm[0] * im
+        out[1] = fm[1] * im
+        out[2] = fm[2] * im
+    return out
+
+
+@njit(cache=True)
+def process_batch(
+    sigmas: np.ndarray,
+    out: np.ndarray,
+    dt: float,
+    R: np.ndarray,
+    rates: np.ndarray,
+    w_rot: np.ndarray,
+    p: np.ndarray,
+    decay_d: float,
+    i_scale: int,
+    fz_ref: float,
+) -> None:
+    """Propagate every sigma point by one Euler step of Eq. 49. Wind, scale and bias: random
+    walks, except the vertical wind, multiplied by ``decay_d`` (Ornstein-Uhlenbeck, see
+    EstimatorConfig; 1 = random walk)."""
+    g = p[P_G]
+    pr, qr, rr = rates[0], rates[1], rates[2]
+    for k in range(sigmas.shape[0]):
+        x = sigmas[k]
+        f = specific_force(x, R, rates, w_rot, p, i_scale, fz_ref)
+        u, v, w = x[0], x[1], x[2]
+        # Gravity in body axes is the third row of R (R^T [0, 0, g]); the rates x v term is
+        # the rotation of the body axes the velocity is expressed in.
+        du = f[0] + R[2, 0] * g - (qr * w - rr * v)
+        dv = f[1] + R[2, 1] * g - (rr * u - pr * w)
+        dw = f[2] + R[2, 2] * g - (pr * v - qr * u)
+        out[k, :] = x
+        out[k, 0] = u + dt * du
+        out[k, 1] = v + dt * dv
+        out[k, 2] = w + dt * dw
+        out[k, 5] = x[5] * decay_d
+
+
+@njit(cache=True)
+def accel_batch(
+    sigmas: np.ndarray,
+    R: np.ndarray,
+    rates: np.ndarray,
+    w_rot: np.ndarray,
+    p: np.ndarray,
+    i_scale: int,
+    bias_idx: np.ndarray,
+    fz_ref: float,
+) -> np.ndarray:
+    """Accelerometer measurement model at every sigma point: f(v_air) (with the force scale)
+    + bias; ``bias_idx[i]`` is the state index of the body-axis-i bias, -1 = no bias state."""
+    n = sigmas.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        f = specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
+        for i in range(3):
+            j = bias_idx[i]
+            out[k, i] = f[i] + (sigmas[k, j] if j >= 0 else 0.0)
+    return out
