@@ -24,14 +24,16 @@ Units SI, NED, simulation time in s.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 from collections.abc import Callable
+from types import SimpleNamespace
+from typing import cast
 
 import numpy as np
 
 from sitl.autopilot.builtin import BuiltinAutopilot
-from sitl.autopilot.fused import advance_controlled
 from sitl.hil.motors import N_MOTORS, MotorMap
 from sitl.world.world import Pilot, RotorCommand, World
 
@@ -66,12 +68,10 @@ class ControlGuard:
         """Compile (or load from numba's cache) the safety pilot's kernel now, on scratch copies of the
         world's arrays: compiling it when it is needed would stall the world for tens of seconds."""
         w = self.world
-        sc = w.scenario
         ph = w.phys
-        ap = BuiltinAutopilot(sc.flight, sc.gains, np.zeros(3), 0.0)
-        advance_controlled(1, 0, ph.dt, ph.x.copy(), ph.flags.copy(), ph.params, ph.crash_speed, ph.imu_div,
-                           ph.rows.copy(), ph.fb.copy(), w.wind_kernel, ap.fc.sp, ap.gains, ap.cs,
-                           ap.accel_sp)  # fmt: skip
+        scratch = SimpleNamespace(tick=0, wind_kernel=w.wind_kernel, phys=dataclasses.replace(
+            ph, x=ph.x.copy(), flags=ph.flags.copy(), rows=ph.rows.copy(), fb=ph.fb.copy()))  # fmt: skip
+        BuiltinAutopilot(w.scenario.flight, w.scenario.gains, np.zeros(3), 0.0).advance(cast(World, scratch), 1)
 
     @property
     def pilot(self) -> Pilot:
