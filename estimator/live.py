@@ -10,6 +10,9 @@ only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to
   autopilot is not MAV_AUTOPILOT_INVALID (of ``target_system`` if given). Messages from any other
   system or component are counted (``other_system``, ``other_component``) and ignored; a new
   source is noted once. (A second system on the link once fed the filter: 19.8 m/s of wind.)
+  With ``esc_component`` set, the rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) comes from that
+  component of the autopilot's system instead of the autopilot's own (``windseek sitl --px4``: its
+  ESC model is component 158, while PX4 SITL streams a placeholder ESC_STATUS of its own).
 - **Inputs** (``live_select``, ``mavlink_decode``): chosen after ``select_window_s`` of autopilot
   time and stated in one line; decoded to SI. Velocities wait until the IMU has caught up with
   their time (an autopilot sends its state ahead of the raw samples of the same interval; fed
@@ -51,6 +54,8 @@ from vehicle.params import VehicleParams
 
 MAV_AUTOPILOT_INVALID = 8
 MAV_TYPE_QUADROTOR = 2
+#: Rotor telemetry messages (their source can be set apart: ``LiveConfig.esc_component``).
+ESC_TELEMETRY = frozenset({"ESC_STATUS", "RAW_RPM", "ESC_INFO"})
 MAX_NOTED_SOURCES = 8  # other systems/components noted by name; later ones are only counted
 
 
@@ -63,6 +68,7 @@ class LiveConfig:
     imu_average: int = 1
     ground_gate: bool = True
     target_system: int | None = None
+    esc_component: int | None = None  # rotor telemetry from this component of the target's system (None: its own)
     esc_order: tuple[int, ...] = SITL_ORDER  # ESC number (0-based) -> rotor index
     outputs: OutputMap | None = None  # actuator outputs -> rotor speeds (None: OutputMap.for_vehicle, px4)
     airframe: str | None = None  # the vehicle flown, when it is not the vehicle file's
@@ -250,6 +256,12 @@ class LiveCore:
                 self.note(f"autopilot system {src[0]} component {src[1]}")
                 return True
             self.counters["before_lock"] += 1
+            return False
+        esc = self.config.esc_component
+        if esc is not None and mtype in ESC_TELEMETRY:
+            if src == (self.target[0], esc):
+                return True
+            self.counters["esc_other_component"] += 1
             return False
         if src == self.target:
             return True

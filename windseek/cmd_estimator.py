@@ -100,6 +100,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="pause the filter while the autopilot reports the vehicle on the ground or landing "
                    "(EXTENDED_SYS_STATE) and replace a filter that flew at the next take-off (default on)")
     p.add_argument("--system-id", type=int, default=None, help="our MAVLink system id (default: the autopilot's)")
+    p.add_argument("--esc-component", type=int, default=None, metavar="ID",
+                   help="rotor speeds (ESC_STATUS, RAW_RPM, ESC_INFO) from this MAVLink component of the autopilot's "
+                   "system (158 with windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; "
+                   "default: the autopilot's own)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of vehicle time")
     p.add_argument("--link-timeout", type=float, default=10.0, metavar="S",
                    help="stop when nothing arrived for S wall seconds (0 = never; default 10)")
@@ -126,7 +130,7 @@ def make_core(args: argparse.Namespace) -> LiveCore:
     outputs = OutputMap.for_vehicle(vehicle, args.esc_order, args.thr_mdl_fac, tuple(args.output_range))
     cfg = LiveConfig(vehicle=vehicle, imu_average=args.imu_average, ground_gate=args.ground_gate,
                      target_system=args.target_system, esc_order=MOTOR_ORDERS[args.esc_order], outputs=outputs,
-                     airframe=args.airframe)  # fmt: skip
+                     airframe=args.airframe, esc_component=args.esc_component)  # fmt: skip
     return LiveCore(cfg)
 
 

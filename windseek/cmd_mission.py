@@ -57,6 +57,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters (default: "
                    "$WINDSEEK_SIGNING_KEY if set); MAVSDK has no signing, so the link runs through an "
                    "in-process signing bridge")
+    p.add_argument("--esc-component", type=int, default=None, metavar="ID",
+                   help="--wind estimated: rotor speeds (ESC_STATUS) from this MAVLink component of the vehicle (158 "
+                   "with windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default: the "
+                   "autopilot's own)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 
@@ -86,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = MissionConfig(
         connect=args.connect, strategy=args.strategy, params=load_params(args.strategy, args.params),
         altitude_m=args.altitude, wind=args.wind, limits=limits, vehicle=args.vehicle, seed=args.seed,
-        speed_hint=args.speed_hint, say=say, signing_key=key,
+        speed_hint=args.speed_hint, esc_component=args.esc_component, say=say, signing_key=key,
     )  # fmt: skip
     res = asyncio.run(run_mission(cfg))
     if args.json:

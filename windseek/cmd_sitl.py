@@ -94,7 +94,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "other links and peers (PX4 MAV_X_FORWARD), e.g. an estimator's WIND_COV to the mission")
     g.add_argument("--exit-summary", metavar="PATH", help="write a JSON file at shutdown with truth-based figures: "
                    "wind RMSE of the received WIND_COV, true and declared source, path length, final state")
+    _add_px4_options(p)
     p.set_defaults(func=run)
+
+
+def _add_px4_options(p: argparse.ArgumentParser) -> None:
+    """``--px4``: windseek as PX4's simulator (sitl/hil/; README "Pointing it at a real autopilot")."""
+    g = p.add_argument_group("PX4 flies (windseek as PX4's simulator, lockstep; see sitl/hil/)")
+    g.add_argument("--px4", action="store_true", help="PX4 SITL (TCP) or a flight controller in HITL (serial) flies "
+                   "the scenario's world on windseek's sensors; the built-in autopilot is off")
+    g.add_argument("--px4-free", action="store_true",
+                   help="lockstep as fast as PX4 answers, instead of at --speed (PX4 SITL only)")
+    g.add_argument("--px4-port", default="4560", metavar="[HOST:]PORT",
+                   help="TCP port PX4 SITL connects to: 4560 + PX4 instance (default 127.0.0.1:4560)")
+    g.add_argument("--px4-serial", metavar="DEV[:BAUD]",
+                   help="HITL: a flight controller with SYS_HITL 1 on a serial/USB port (default 921600 baud)")
+    g.add_argument("--px4-mavlink", default="auto", metavar="auto|HOST:PORT|none",
+                   help="PX4 MAVLink instance that forwards windseek's sensor component 158 (CHEM, ESC_STATUS, true "
+                   "wind) to the companions: auto = SITL's payload link 127.0.0.1:14280+instance, or the HITL serial "
+                   "link itself")
+    g.add_argument("--px4-timeout", type=float, default=2.0, metavar="S",
+                   help="wall seconds to wait for PX4's answer to a lockstep step before stepping on (counted)")
 
 
 def build(args: argparse.Namespace) -> SitlLink:
@@ -154,6 +174,10 @@ def _close_wire(parts: list) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "px4", False):
+        from sitl.hil.launch import run_px4
+
+        return run_px4(args)
     link = build(args)
     try:
         wire = _attach_wire(link, args)

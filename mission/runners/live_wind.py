@@ -57,8 +57,9 @@ class EstimatedLiveWind:
     mode = "estimated"
 
     def __init__(self, vehicle_params: VehicleParams, upwind: UpwindFilter, target_system: int | None = None,
-                 max_queue: int = 2000) -> None:  # fmt: skip
-        self.core = LiveCore(LiveConfig(vehicle=vehicle_params, target_system=target_system))
+                 max_queue: int = 2000, esc_component: int | None = None) -> None:  # fmt: skip
+        self.core = LiveCore(LiveConfig(vehicle=vehicle_params, target_system=target_system,
+                                        esc_component=esc_component))  # fmt: skip
         self.worker = EstimatorWorker(self.core, max_queue=max_queue)
         self.worker.start()
         self.upwind = upwind

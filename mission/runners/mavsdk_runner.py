@@ -68,6 +68,8 @@ class MissionConfig:
     hold_s: vehicle seconds to hold before landing after an abort.
     link_grace_s: wall seconds to wait for the link to come back after a loss.
     speed_hint: the simulator's speed factor, if known: wall-clock waits are divided by it.
+    esc_component: the estimator's rotor telemetry from this component (158 with ``windseek sitl --px4``);
+        None: the autopilot's own.
     say: where the runner's lines go (default print).
     """
 
@@ -86,6 +88,7 @@ class MissionConfig:
     hold_s: float = 2.0
     link_grace_s: float = 30.0
     speed_hint: float = 1.0
+    esc_component: int | None = None
     say: Callable[[str], None] = print
     signing_key: Any = None  # wire.signing.SigningKey: MAVLink 2 signing on the link (None: off)
 
@@ -108,7 +111,8 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     upwind = UpwindFilter(params)
     if cfg.wind == "estimated":
         extra = ESTIMATOR_MESSAGES
-        estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind)  # before any telemetry arrives
+        estimated = EstimatedLiveWind(load_vehicle(cfg.vehicle), upwind,  # before any telemetry arrives
+                                      esc_component=cfg.esc_component)  # fmt: skip
         sink = estimated.sink
     elif cfg.wind == "mavlink":
         extra = ("WIND_COV",)

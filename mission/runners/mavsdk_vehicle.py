@@ -83,6 +83,9 @@ class MavsdkVehicle:
         self.counters: Counter[str] = Counter()
         self.wind_cov: tuple[float, np.ndarray, np.ndarray] | None = None  # (t, wind NED, cov) of WIND_COV
         self.target: tuple[int, int] | None = None  # (system, component) locked on
+        #: Component whose CHEM readings are used: the first that sent one. PX4 re-publishes every
+        #: NAMED_VALUE_FLOAT it receives as its own (a debug value, at a lower rate): that copy is ignored.
+        self.chem_component: int | None = None
         self._last_rx = -math.inf  # wall time of the last message from the target
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -201,6 +204,12 @@ class MavsdkVehicle:
                 st.t = t
             elif not t < st.t or math.isnan(st.t):
                 st.t = t
+        if name == "NAMED_VALUE_FLOAT" and str(f.get("name", "")).rstrip("\x00") == "CHEM":
+            if self.chem_component is None:
+                self.chem_component = compid
+            elif compid != self.chem_component:
+                self.counters["rx_chem_relayed"] += 1
+                return
         if self.sink is not None:
             self.sink(name, f, t, sysid, compid)
         if compid != self.target[1] and name not in ("NAMED_VALUE_FLOAT", "WIND_COV", "STATUSTEXT"):

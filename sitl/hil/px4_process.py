@@ -1,0 +1,142 @@
+"""Start and stop a PX4 SITL binary for windseek (tests, benchmarks, scripts): a thin subprocess adapter.
+
+``WINDSEEK_PX4_BIN`` names the ``px4`` binary of a SITL build (``build/px4_sitl_*/bin/px4``; its
+ROMFS is ``../etc``, and the ``px4-*`` links next to the binary must stay there). Each run gets a
+fresh working directory (parameters, dataman and logs live there, so nothing carries over) and an
+instance number ``N``; the ports then are (PX4 ``px4-rc.mavlink``, ``px4-rc.mavlinksim``):
+
+- simulator: PX4 connects to TCP ``4560 + N`` (airframe 10016, an external simulator: windseek);
+- API/offboard link: PX4 binds UDP ``14580 + N`` (a client that sends there first gets the stream);
+- ground-station link: PX4 binds UDP ``18570 + N``;
+- payload link: PX4 binds UDP ``14280 + N`` (windseek's peripheral component talks there);
+- system id ``N + 1``.
+
+PX4 answers only the first client of each UDP link for the rest of its run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import signal
+import socket
+import subprocess
+from pathlib import Path
+from typing import IO, Any
+
+from sitl.hil.px4_params import px4_env
+
+ENV_BIN = "WINDSEEK_PX4_BIN"
+#: SIH quad X (PX4's own physics), for runs without windseek's world.
+SIH_ENV = {"PX4_SYS_AUTOSTART": "10040", "PX4_SIMULATOR": "sihsim", "PX4_SIM_MODEL": "sihsim_quadx"}
+
+
+def px4_binary() -> Path | None:
+    """The PX4 SITL binary named by ``WINDSEEK_PX4_BIN``, or None when unset or not executable."""
+    p = os.environ.get(ENV_BIN, "")
+    return Path(p) if p and os.access(p, os.X_OK) else None
+
+
+def ports(instance: int) -> dict[str, int]:
+    """The ports of PX4 SITL instance ``instance`` (see the module docstring)."""
+    n = int(instance)
+    return {"sim": 4560 + n, "api": 14580 + n, "gcs": 18570 + n, "payload": 14280 + n, "gimbal": 13030 + n,
+            "sysid": n + 1}  # fmt: skip
+
+
+def instance_free(instance: int) -> bool:
+    """True if no PX4 holds instance ``instance`` (its lock file) and its ports are free."""
+    lock = Path(f"/tmp/px4_lock-{instance}")
+    if lock.exists():
+        try:
+            with open(lock, "a") as f:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                fcntl.flock(f, fcntl.LOCK_UN)
+        except OSError:
+            return False
+    p = ports(instance)
+    checks = [(socket.SOCK_STREAM, p["sim"])] + [(socket.SOCK_DGRAM, p[k]) for k in ("api", "gcs", "payload", "gimbal")]
+    for kind, port in checks:
+        with socket.socket(socket.AF_INET, kind) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                return False
+    return True
+
+
+def free_instance(first: int = 11, last: int = 60) -> int:
+    """A PX4 instance number in [first, last] that is free now (RuntimeError if none)."""
+    for n in range(first, last + 1):
+        if instance_free(n):
+            return n
+    raise RuntimeError(f"no free PX4 instance in {first}..{last}")
+
+
+class Px4Sitl:
+    """One PX4 SITL process (``px4 -d -i N -w WORKDIR ROMFS``), stopped with SIGTERM then SIGKILL.
+
+    Args:
+        binary: the ``px4`` binary; instance: ``N``; workdir: a fresh directory for this run;
+        log: where PX4's output goes; sih: PX4's own SIH physics (airframe 10040) instead of an
+            external simulator; speed: windseek's speed factor (scales PX4's link-loss timeouts);
+        logging: PX4's flight log (``SDLOG_BACKEND``); extra_env: more ``PX4_PARAM_*`` or other variables.
+    """
+
+    def __init__(self, binary: Path, instance: int, workdir: Path, log: Path, sih: bool = False, speed: float = 1.0,
+                 logging: bool = False, extra_env: dict[str, str] | None = None) -> None:  # fmt: skip
+        self.binary = Path(binary)
+        self.instance = int(instance)
+        self.workdir = Path(workdir)
+        self.log_path = Path(log)
+        env = {k: v for k, v in os.environ.items() if not k.startswith("PX4_")}
+        if sih:
+            env.update(SIH_ENV)
+            if not logging:
+                env["PX4_PARAM_SDLOG_BACKEND"] = "0"
+        else:
+            env.update(px4_env(speed, logging=logging))
+        env.update(extra_env or {})
+        self.env = env
+        self.ports = ports(self.instance)
+        self.proc: subprocess.Popen[bytes] | None = None
+        self._log: IO[bytes] | None = None
+
+    def start(self) -> Px4Sitl:
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
+        romfs = self.binary.parent.parent / "etc"
+        self.proc = subprocess.Popen([str(self.binary), "-d", "-i", str(self.instance), "-w", str(self.workdir),
+                                      str(romfs)], cwd=self.workdir, env=self.env, stdin=subprocess.DEVNULL,
+                                     stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
+        return self
+
+    def running(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def stop(self, timeout_s: float = 10.0) -> int | None:
+        """SIGTERM, then SIGKILL after ``timeout_s``; returns the exit code."""
+        p = self.proc
+        if p is not None and p.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(p.pid, signal.SIGTERM)
+            try:
+                p.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(p.pid, signal.SIGKILL)
+                p.wait(timeout_s)
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        return None if p is None else p.returncode
+
+    def log_text(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+
+    def __enter__(self) -> Px4Sitl:
+        return self.start()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
