@@ -55,6 +55,12 @@ class Obstacles:
         return cls([Building(np.asarray(b.footprint(), dtype=float), float(b.height_m), getattr(b, "name", ""))
                     for b in buildings], margin_m)  # fmt: skip
 
+    def shifted(self, north_m: float, east_m: float) -> Obstacles:
+        """The same buildings moved by (north, east) m: from the scenario's frame to an autopilot's
+        local frame whose origin lies elsewhere (PX4 puts its origin where its estimator started)."""
+        d = np.array([north_m, east_m], dtype=float)
+        return Obstacles([Building(b.footprint + d, b.height_m, b.name) for b in self.buildings], self.margin_m)
+
     @classmethod
     def from_scenario_file(cls, path: str | Path, margin_m: float = 3.0) -> Obstacles:
         """The buildings of a scenario file's ``[urban]`` table (ValueError: no such table)."""

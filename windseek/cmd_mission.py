@@ -61,6 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="--wind estimated: rotor speeds (ESC_STATUS) from this MAVLink component of the vehicle (158 "
                    "with windseek sitl --px4, whose PX4 sends a placeholder ESC_STATUS of its own; default: the "
                    "autopilot's own)")
+    p.add_argument("--buildings", default=None, metavar="SCENARIO",
+                   help="fly among the [urban] buildings of this scenario (name or file): uploaded to the autopilot "
+                   "as geofence exclusion zones and kept clear of by every setpoint")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 
@@ -71,6 +74,14 @@ def run(args: argparse.Namespace) -> int:
     from wire.signing import load_key
 
     key = load_key(args.signing_key)  # a bad key: one clear line, before any connection
+    buildings = None
+    if args.buildings is not None:
+        from mission.runners.fence import SiteBuildings
+
+        try:
+            buildings = SiteBuildings.from_scenario_file(args.buildings)
+        except (OSError, ValueError) as e:
+            raise ValueError(f"--buildings {args.buildings}: {e}") from None
 
     limits = replace(SafetyLimits(), min_altitude_m=args.min_altitude, max_altitude_m=args.max_altitude,
                      time_limit_s=args.time_limit, link_timeout_s=args.link_timeout)  # fmt: skip
@@ -91,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         connect=args.connect, strategy=args.strategy, params=load_params(args.strategy, args.params),
         altitude_m=args.altitude, wind=args.wind, limits=limits, vehicle=args.vehicle, seed=args.seed,
         speed_hint=args.speed_hint, esc_component=args.esc_component, say=say, signing_key=key,
+        buildings=buildings,
     )  # fmt: skip
     res = asyncio.run(run_mission(cfg))
     if args.json:

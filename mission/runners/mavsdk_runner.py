@@ -36,11 +36,13 @@ import numpy as np
 
 from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
+from mission.runners.fence import SiteBuildings, place_buildings
 from mission.runners.live_wind import ESTIMATOR_MESSAGES, EstimatedLiveWind, NoLiveWind, WindCovWind
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
 from mission.safety import SafetyLimits
 from mission.strategies import make_strategy
 from mission.strategies.params import CommonParams, load_params
+from mission.vehicle import CommandError
 from mission.wind_modes import LIVE_WIND_MODES
 from mission.wind_source import UpwindFilter
 from vehicle.params import load_vehicle
@@ -70,6 +72,9 @@ class MissionConfig:
     speed_hint: the simulator's speed factor, if known: wall-clock waits are divided by it.
     esc_component: the estimator's rotor telemetry from this component (158 with ``windseek sitl --px4``);
         None: the autopilot's own.
+    buildings: a scenario's buildings (:class:`mission.runners.fence.SiteBuildings`): placed in the
+        autopilot's local frame from its HOME_POSITION, uploaded as geofence exclusion zones and
+        kept clear by the safety supervisor; None: open field.
     say: where the runner's lines go (default print).
     """
 
@@ -91,6 +96,7 @@ class MissionConfig:
     esc_component: int | None = None
     say: Callable[[str], None] = print
     signing_key: Any = None  # wire.signing.SigningKey: MAVLink 2 signing on the link (None: off)
+    buildings: SiteBuildings | None = None
 
 
 async def run_mission(cfg: MissionConfig) -> MissionResult:
@@ -119,9 +125,16 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     try:
         async with MavsdkVehicle(link, cfg.say, sink, extra) as v:
             wind: MissionWind = estimated or (WindCovWind(v, upwind) if cfg.wind == "mavlink" else NoLiveWind())
+            obstacles = None
+            if cfg.buildings is not None:
+                try:
+                    obstacles = await place_buildings(cfg.buildings, lambda: v.home, v.drone, cfg.say,
+                                                      max(10.0, 5.0 / cfg.speed_hint))  # fmt: skip
+                except CommandError as e:
+                    raise MissionError(f"buildings: {e}") from None
             loop = MissionLoop(v, make_strategy(cfg.strategy), params, wind, cfg.limits,
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
-                               seed=cfg.seed)  # fmt: skip
+                               seed=cfg.seed, obstacles=obstacles)  # fmt: skip
             loop.result.strategy = cfg.strategy
             await _ensure_datalink_failsafe(v, loop.say)
             lags: list[float] = []

@@ -40,7 +40,7 @@ from wire.names import publish
 
 #: Messages the runner subscribes to (the sink's inputs are added by the wind source).
 STATE_MESSAGES = ("HEARTBEAT", "EXTENDED_SYS_STATE", "LOCAL_POSITION_NED", "ATTITUDE_QUATERNION",
-                  "NAMED_VALUE_FLOAT", "STATUSTEXT")  # fmt: skip
+                  "NAMED_VALUE_FLOAT", "STATUSTEXT", "HOME_POSITION")  # fmt: skip
 MAV_AUTOPILOT_INVALID = 8
 MAV_STATE_EMERGENCY = 6
 #: Mission status queued for the wire at most (the oldest are dropped, counted).
@@ -82,6 +82,7 @@ class MavsdkVehicle:
         self.state = VehicleState()
         self.counters: Counter[str] = Counter()
         self.wind_cov: tuple[float, np.ndarray, np.ndarray] | None = None  # (t, wind NED, cov) of WIND_COV
+        self.home: dict[str, Any] | None = None  # the last HOME_POSITION's fields (degE7, mm, local m)
         self.target: tuple[int, int] | None = None  # (system, component) locked on
         #: Component whose CHEM readings are used: the first that sent one. PX4 re-publishes every
         #: NAMED_VALUE_FLOAT it receives as its own (a debug value, at a lower rate): that copy is ignored.
@@ -241,6 +242,8 @@ class MavsdkVehicle:
             self._wake()
         elif name == "EXTENDED_SYS_STATE":
             st.landed = int(f["landed_state"])
+        elif name == "HOME_POSITION":
+            self.home = f
         elif name == "STATUSTEXT":
             self.say(f"autopilot: {str(f.get('text', '')).rstrip(chr(0))}")
         elif name == "WIND_COV":
