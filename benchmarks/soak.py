@@ -67,7 +67,7 @@ def main() -> None:
     args = ap.parse_args()
     p_est, p_mis = free_udp_port(), free_udp_port()
     sitl = subprocess.Popen(windseek("sitl", "open-field", "--speed", "1", "--udp-bind", "127.0.0.1:0", "--udp",
-                                     f"127.0.0.1:{p_est}", f"127.0.0.1:{p_mis}", "--forward"),
+                                     f"127.0.0.1:{p_est}", "--udp", f"127.0.0.1:{p_mis}", "--forward"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
     est = subprocess.Popen(windseek("estimator", "--connect", f"udpin://127.0.0.1:{p_est}", "--imu-average", "2",
                                     "--link-timeout", "3600", "--json"),
