@@ -8,7 +8,7 @@ through the motor lag of ``estimator.rpm_free`` when there is no ESC telemetry),
 
     world/vehicle, world/trail            the flown path (whenever the log has positions)
     world/wind/{truth,estimate}           arrows at the vehicle
-    wind/{north,east,down}/estimate       our estimate, +- 2 sigma in .../lower, .../upper
+    wind/{north,east,down}/estimate       our estimate, +- 2 sigma in .../band
     wind/{north,east,down}/truth          simulation truth (project SITL logs only)
     wind/{north,east,down}/autopilot      the autopilot's own estimate (PX4 WIND_COV / wind
                                           topic, ArduPilot WIND), for comparison
@@ -20,7 +20,7 @@ through the motor lag of ``estimator.rpm_free`` when there is no ESC telemetry),
 
 It also says what was missing and what that cost (:attr:`ReviewResult.missing`), e.g. "no ESC
 telemetry: estimator ran on rotor speeds implied by the actuator outputs" or "no IMU: wind not
-estimated". Times on the ``sim_time`` timeline are the log's boot-clock seconds.
+estimated". Times on the ``vehicle_time`` timeline are the log's boot-clock seconds.
 
 Airborne segments come from the landed state (else arming); on the ground the rotor model
 does not apply (the ground carries the weight), so the estimator only runs in the air and
@@ -41,13 +41,13 @@ import numpy as np
 from estimator.direction import from_direction_deg
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import EstimatorConfig, WindEstimator
-from recording.rerun_log import AXES, RunRecorder
+from recording.recorder import RunRecorder
 from recording.sim_hook import wind_speed_from_deg
+from recording.summary import RunSummary
 from review.flight import FlightData
 from vehicle.params import VehicleParams, load_vehicle
 
 ULOG_MAGIC = b"ULog\x01\x12\x35"
-C_AUTOPILOT = (44, 160, 44)
 
 
 def read_flight(path: Path | str, motor_order: str = "auto", w_max_rad_s: float | None = None) -> FlightData:
@@ -185,21 +185,8 @@ def _rmse(est: np.ndarray, ref: np.ndarray) -> dict[str, float | None]:
     return out
 
 
-class ReviewRecorder(RunRecorder):
-    """A :class:`RunRecorder` with one more series: the autopilot's own wind estimate."""
-
-    def _send_static(self) -> None:
-        super()._send_static()
-        for a in AXES:
-            self._style(f"wind/{a}/autopilot", "autopilot", C_AUTOPILOT, 1.5)
-        self._style("wind/speed/autopilot", "autopilot", C_AUTOPILOT, 1.5)
-
-    def autopilot_wind(self, t: float, wind_ned: np.ndarray) -> None:
-        """The autopilot's wind estimate [m/s, NED air-mass velocity]; NaN components are gaps."""
-        for k, a in enumerate(AXES):
-            self._push(f"wind/{a}/autopilot", t, float(wind_ned[k]))
-        self._push("wind/speed/autopilot", t, math.hypot(float(wind_ned[0]), float(wind_ned[1])))
-        self._maybe_flush(t)
+#: The recorder of a review: the autopilot's own wind estimate is a RunRecorder series now.
+ReviewRecorder = RunRecorder
 
 
 @dataclass
@@ -238,7 +225,7 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, out: Path, missing: 
         for n in fd.notes:
             rec.text(t0, n, "DEBUG", channel="review")
         for t, text, level in fd.texts:
-            rec.text(t, text, level)
+            rec.autopilot_event(t, text, level)  # mode and arming changes also give the flight phases
         att = fd.attitude
         tw = fd.truth_wind
         if len(fd.position):
@@ -276,6 +263,12 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, out: Path, missing: 
         if len(fd.rotors):
             for i in _decimate(fd.rotors.t, dt):
                 rec.rotors(float(fd.rotors.t[i]), fd.rotors.v[i])
+        if len(fd.position):
+            rec.set_scene([fd.position.v[0][:2]])
+        rec.summary(RunSummary(kind=f"flight log review ({fd.kind} from {fd.autopilot}, {fd.duration_s:.1f} s)",
+                               scenario=fd.path.name, wind_source="our estimator re-run offline on the logged "
+                               "sensors" if track is not None and len(track.t) else "none: wind not estimated",
+                               missing=list(missing), extra={"inputs": used or "none"}))  # fmt: skip
 
 
 def summarize(fd: FlightData, track: EstimatorTrack | None, missing: list[str], out: Path,

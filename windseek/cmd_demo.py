@@ -339,6 +339,12 @@ def run(args: argparse.Namespace) -> int:
     wall_s = time.monotonic() - wall0
     summary = make_summary(sc.name, args.strategy, seed, args.speed, mission, truth, wall_s, files)
     files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    try:  # the recording carries the same summary as the one printed (and the .json)
+        from recording.finalize import add_demo_result
+
+        add_demo_result(files["rrd"], summary)
+    except (OSError, RuntimeError, ValueError) as e:
+        note(f"  recording: the summary could not be added to {files['rrd']}: {e}")
     with contextlib.suppress(OSError):
         truth_path.unlink()
     print_summary(summary, note)
