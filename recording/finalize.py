@@ -42,7 +42,8 @@ def rewrite_summary(path: Path | str, summary: RunSummary) -> None:
                                make_default=True)  # fmt: skip
         out.log("summary", rr.TextDocument(summary.markdown(), media_type="text/markdown"), static=True)
         out.send_property("result", rr.AnyValues(**summary.properties()))
-        out.send_chunks(reader.stream().filter(content=["+ /**", "- /summary", "- /__properties/result"]))
+        out.send_chunks(reader.stream().filter(content=["+ /**", "+ /__properties/**", "- /summary",
+                                                        "- /__properties/result"]))
         out.flush()
         out.disconnect()
         os.replace(tmp, path)
