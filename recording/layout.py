@@ -118,6 +118,12 @@ def plot_view(key: str, lay: Layout) -> rrb.View:
     )  # fmt: skip
 
 
+def _up_to_cursor() -> rrb.VisibleTimeRanges:
+    """Every row up to the time cursor: the path and the hits are sent piece by piece."""
+    return rrb.VisibleTimeRanges([rrb.VisibleTimeRange(TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
+                                                       end=rrb.TimeRangeBoundary.cursor_relative())])  # fmt: skip
+
+
 def map_view(lay: Layout) -> rrb.View:
     if "map" in lay.missing:
         return _missing_view("map", PANELS["map"])
@@ -126,7 +132,8 @@ def map_view(lay: Layout) -> rrb.View:
         n0, n1, e0, e1 = lay.bounds_ne
         bounds = rrb.VisualBounds2D(x_range=(e0, e1), y_range=(-n1, -n0))
     return rrb.Spatial2DView(origin="/map", name=PANELS["map"], visual_bounds=bounds,
-                             background=rrb.Background(color=SCENE_BACKGROUND))  # fmt: skip
+                             background=rrb.Background(color=SCENE_BACKGROUND),
+                             overrides={"/map/path": _up_to_cursor(), "/map/hits": _up_to_cursor()})  # fmt: skip
 
 
 def view_3d(lay: Layout) -> rrb.View:
@@ -141,7 +148,8 @@ def view_3d(lay: Layout) -> rrb.View:
         eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=(cn - 0.8 * d, ce + 0.6 * d, cz - 0.5 * d),
                                 look_target=(cn, ce, cz), eye_up=(0.0, 0.0, -1.0))  # fmt: skip
     return rrb.Spatial3DView(origin="/world", name=PANELS["3d"], eye_controls=eye,
-                             background=rrb.Background(color=SCENE_BACKGROUND))  # fmt: skip
+                             background=rrb.Background(color=SCENE_BACKGROUND),
+                             overrides={"/world/trail": _up_to_cursor()})  # fmt: skip
 
 
 def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:

@@ -20,9 +20,9 @@ Entity paths besides the map and 3D ones (:mod:`recording.scene`)::
     summary                            TextDocument (Markdown): the run summary
     missing/<panel>                    TextDocument: why a panel has no data (the layout shows it instead)
 
-Cost and rates: a per-tick call costs a few to tens of microseconds (rows are buffered and sent as
-columns, :mod:`recording.stream`); the path is re-sent at most every ``trail_every_s``; plume
-slices, text and state changes are logged at once. Recommended rates: pose and wind arrows 20-50 Hz,
+Cost and rates: a per-tick call costs a few to tens of microseconds (rows, the path's segments
+and the hits included, are buffered and sent as columns, :mod:`recording.stream`); plume slices,
+text and state changes are logged at once. Recommended rates: pose and wind arrows 20-50 Hz,
 series 20-50 Hz (chemical at its sensor rate), plume slice 0.2-1 Hz, text on change only.
 
 A recorder is not thread-safe. Each instance owns a separate ``rr.RecordingStream`` with a fresh
@@ -58,7 +58,7 @@ from recording.style import (
     PHASES,
     TIMELINE,
     VecLike,
-)  # fmt: skip
+)
 from recording.summary import RunSummary
 
 #: Marker lines span this far up and down [plot units]: every plot has a fixed value range.
@@ -75,8 +75,7 @@ class RunRecorder(EventsMixin):
         scenario, strategy, seed: recording name and properties.
         blueprint: send the layout (:mod:`recording.layout`), at the start and again at close.
         series_flush_s: vehicle seconds between two sends of the buffered rows.
-        trail_min_step_m, trail_every_s, trail_max_points: path point spacing [m], re-send period
-            [s], and size beyond which it is thinned by 2.
+        trail_min_step_m: the path gets a segment whenever the vehicle moved this far [m].
         c_range_mg_m3: (low, high) of the concentration colour scale [mg/m^3]; the chemical plot's
             floor (a reading of 0 is drawn at ``low``).
         arrow_scale_s: wind arrow length per m/s of wind [m / (m/s)].
@@ -87,13 +86,11 @@ class RunRecorder(EventsMixin):
 
     def __init__(self, path: Path | str, application_id: str = "windseek", *, scenario: str | None = None,
                  strategy: str | None = None, seed: int | None = None, blueprint: bool = True,
-                 series_flush_s: float = 4.0, trail_min_step_m: float = 0.5, trail_every_s: float = 1.0,
-                 trail_max_points: int = 4000, c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
+                 series_flush_s: float = 4.0, trail_min_step_m: float = 0.5,
+                 c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
                  arrow_scale_s: float = 2.0, recording_id: str | None = None) -> None:  # fmt: skip
         super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id)
         self.trail_min_step_m = float(trail_min_step_m)
-        self.trail_every_s = float(trail_every_s)
-        self.trail_max_points = int(trail_max_points)
         self.c_range_mg_m3 = (float(c_range_mg_m3[0]), float(c_range_mg_m3[1]))
         self.arrow_scale_s = float(arrow_scale_s)
         self.blueprint = blueprint
@@ -297,8 +294,6 @@ class RunRecorder(EventsMixin):
         if self.closed:
             return
         self.flush_series()
-        if self._trail_dirty:
-            self._send_trail(self.t_latest)
         thr = self.chem_threshold
         if thr is not None and thr > 0 and self.has_series("chem/value"):
             for t in (self.t_first, self.t_last):

@@ -12,8 +12,9 @@ Entity paths::
     world/plume/curtain                concentration on the vertical plane along the wind through the source
     world/plume/puffs                  puff centres (small dots; off unless a caller logs them)
     map/posterior/{image,credible}     a strategy's source posterior and its credible circle
-    map/path, world/trail              the path flown so far, one strip per strategy state
-    map/hits, world/hits               where the sensor detected the plume, coloured by concentration
+    map/path, world/trail              the path, one segment per row (on the map coloured by strategy
+                                       state); the views show every row up to the time cursor
+    map/hits                           where the sensor detected the plume, coloured by concentration (the same)
     map/vehicle, world/vehicle         the vehicle (Transform3D pose in 3D, with body, marker and axes)
     map/wind/*, world/wind/*           wind at the vehicle: truth and estimate (air-mass velocity)
     map/sources/*, world/sources/*     true source(s) and found radius, declared source and credible region
@@ -39,6 +40,7 @@ from recording.style import (
     C_MAP_TRUTH,
     C_POSTERIOR,
     C_SOURCE,
+    C_TRAIL_3D,
     C_TRUTH,
     C_VEHICLE,
     VecLike,
@@ -46,7 +48,7 @@ from recording.style import (
     log_colormap,
     posterior_image,
     state_color,
-)  # fmt: skip
+)
 from recording.summary import FOUND_RADIUS_M
 
 Bounds = tuple[float, float, float, float]  # north min, north max, east min, east max [m]
@@ -82,15 +84,13 @@ class SceneMixin(RecorderBase):
     c_range_mg_m3: tuple[float, float]
     arrow_scale_s: float
     trail_min_step_m: float
-    trail_every_s: float
-    trail_max_points: int
 
     def _init_scene(self) -> None:
-        self._trail: list[np.ndarray] = []
-        self._trail_state: list[str] = []
-        self._hits: list[tuple[float, float, float, float]] = []  # n, e, d, mg/m^3
-        self._t_trail = -math.inf
-        self._trail_dirty = False
+        # The last path point and its state; the extent of the whole path (the map's bounds).
+        self._path_last: np.ndarray | None = None
+        self._path_last_state = ""
+        self._path_lo = np.full(2, math.inf)
+        self._path_hi = np.full(2, -math.inf)
         self._last_pos: np.ndarray | None = None
         self.path_state = "ground"
         self.scene_points: list[np.ndarray] = []  # (north, east) that must be on the map
@@ -105,6 +105,10 @@ class SceneMixin(RecorderBase):
         log("world/vehicle/axes", rr.Arrows3D(origins=np.zeros((3, 3)), vectors=np.eye(3) * 0.6,
                                                colors=[(230, 40, 40), (40, 180, 40), (40, 80, 230)]))  # fmt: skip
         log("map/vehicle", rr.Points2D.from_fields(radii=ui(5.0), colors=[C_VEHICLE], draw_order=30.0))
+        log("map/path", rr.LineStrips2D.from_fields(radii=ui(1.5), draw_order=10.0))
+        # Hits under the path: the dots show beside the line, the line's state colour stays visible.
+        log("map/hits", rr.Points2D.from_fields(radii=ui(2.5), draw_order=9.0))
+        log("world/trail", rr.LineStrips3D.from_fields(radii=ui(1.5), colors=[C_TRAIL_3D]))
         for name, c, cm in (("truth", C_TRUTH, C_MAP_TRUTH), ("estimate", C_EST, C_MAP_EST)):
             log(f"world/wind/{name}", rr.Arrows3D.from_fields(colors=[c], radii=ui(1.5)))
             log(f"map/wind/{name}", rr.Arrows2D.from_fields(colors=[cm], radii=ui(2.2), draw_order=25.0))
@@ -123,9 +127,9 @@ class SceneMixin(RecorderBase):
         widened to ``aspect`` (east span over north span, or the reverse: room for the map's
         furniture in the corners), inside the geofence (so puffs far downwind or the fence itself
         never set the view)."""
-        pts = list(self.scene_points) + [p[:2] for p in self._trail[:: max(1, len(self._trail) // 500)]]
-        if self._trail:
-            pts.append(self._trail[-1][:2])
+        pts = list(self.scene_points)
+        if np.all(np.isfinite(self._path_lo)):
+            pts += [self._path_lo, self._path_hi]
         a = np.array(pts) if pts else np.zeros((1, 2))
         lo, hi = a.min(axis=0), a.max(axis=0)
         m = max(min_margin_m, margin_frac * float(max(hi - lo)))
@@ -187,8 +191,8 @@ class SceneMixin(RecorderBase):
     def vehicle(self, t: float, pos_ned: VecLike, quat_wxyz: VecLike) -> None:
         """Vehicle pose: position [m, NED] and attitude quaternion [w, x, y, z] (body FRD -> NED).
 
-        Also extends the path (points at least ``trail_min_step_m`` apart, coloured by
-        ``path_state``, re-sent every ``trail_every_s``)."""
+        Also extends the path: a segment whenever the vehicle moved ``trail_min_step_m`` or
+        ``path_state`` changed (its colour on the map)."""
         t = float(t)
         # Copies: callers pass views of live state (sim.x[0:3]) and rows are sent later.
         p = np.array(pos_ned, dtype=float)
@@ -196,59 +200,27 @@ class SceneMixin(RecorderBase):
         self._last_pos = p
         self._push_row("world/vehicle", rr.Transform3D, t, translation=p, quaternion=(q[1], q[2], q[3], q[0]))
         self._push_row("map/vehicle", rr.Points2D, t, positions=(p[1], -p[0]))
-        if not self._trail or np.linalg.norm(p - self._trail[-1]) >= self.trail_min_step_m \
-                or self._trail_state[-1] != self.path_state:  # fmt: skip
-            self._trail.append(p)
-            self._trail_state.append(self.path_state)
-            self._trail_dirty = True
-            if len(self._trail) > self.trail_max_points:
-                # Thin by 2, keeping the start and the newest point, so the strips stay cheap to re-send.
-                keep = list(range(0, len(self._trail), 2))
-                if keep[-1] != len(self._trail) - 1:
-                    keep.append(len(self._trail) - 1)
-                self._trail = [self._trail[i] for i in keep]
-                self._trail_state = [self._trail_state[i] for i in keep]
-        if self._trail_dirty and t - self._t_trail >= self.trail_every_s:
-            self._send_trail(t)
-            self._t_trail = t
+        last = self._path_last
+        if last is None:
+            self._path_last, self._path_last_state = p, self.path_state
+        elif math.dist(p, last) >= self.trail_min_step_m or self.path_state != self._path_last_state:
+            # One segment per row, sent with the buffered columns: the views show every row up to
+            # the time cursor (recording.layout), so the path is whole and current at any time.
+            rgb = state_color(self.path_state)
+            self._push_row("map/path", rr.LineStrips2D, t, strips=((last[1], -last[0]), (p[1], -p[0])), colors=rgb)
+            self._push_row("world/trail", rr.LineStrips3D, t, strips=(last, p))
+            self._path_last, self._path_last_state = p, self.path_state
+            self._path_lo = np.minimum(self._path_lo, p[:2])
+            self._path_hi = np.maximum(self._path_hi, p[:2])
         self._maybe_flush(t)
 
-    def _trail_strips(self) -> tuple[list[np.ndarray], list[tuple[int, int, int]]]:
-        """The path as one strip per run of equal state (each starting where the previous ended)."""
-        pts = np.array(self._trail)
-        strips: list[np.ndarray] = []
-        colors: list[tuple[int, int, int]] = []
-        start = 0
-        for i in range(1, len(pts) + 1):
-            if i == len(pts) or self._trail_state[i] != self._trail_state[start]:
-                seg = pts[max(start - 1, 0) : i]
-                if len(seg) >= 2:
-                    strips.append(seg)
-                    colors.append(state_color(self._trail_state[start]))
-                start = i
-        return strips, colors
-
-    def _send_trail(self, t: float) -> None:
-        self._time(t)
-        strips, colors = self._trail_strips()
-        if strips:
-            self.rec.log("world/trail", rr.LineStrips3D(strips, colors=colors, radii=ui(1.5)))
-            self.rec.log("map/path", rr.LineStrips2D([to_map(s) for s in strips], colors=colors, radii=ui(1.5),
-                                                     draw_order=10.0))  # fmt: skip
-        if self._hits:
-            h = np.array(self._hits)
-            cols = log_colormap(h[:, 3], *self.c_range_mg_m3)
-            self.rec.log("world/hits", rr.Points3D(h[:, :3], colors=cols, radii=ui(2.2)))
-            # Under the path: the dots show beside the line, the line's state colour stays visible.
-            self.rec.log("map/hits", rr.Points2D(to_map(h), colors=cols, radii=ui(2.5), draw_order=9.0))
-        self._trail_dirty = False
-
     def _hit(self, value_mg_m3: float) -> None:
-        """A detection at the vehicle's latest position (drawn with the path)."""
+        """A detection at the vehicle's latest position: a dot on the map, coloured by concentration
+        (one row per hit, shown like the path: every row up to the time cursor)."""
         if self._last_pos is not None:
             p = self._last_pos
-            self._hits.append((float(p[0]), float(p[1]), float(p[2]), float(value_mg_m3)))
-            self._trail_dirty = True
+            rgb = log_colormap(np.array([value_mg_m3]), *self.c_range_mg_m3)[0]
+            self._push_row("map/hits", rr.Points2D, self.t_latest, positions=(p[1], -p[0]), colors=rgb)
 
     # ------------------------------------------------------------------ sources
     def true_sources(self, sources_ned: Sequence[VecLike] | np.ndarray) -> None:

@@ -33,7 +33,6 @@ import numpy as np
 
 from recording.recorder import RunRecorder
 from sitl.world.plume.puffs import PuffPlume
-from vehicle.frames import from_direction_deg
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
@@ -46,7 +45,8 @@ def wind_speed_from_deg(wind_ned: np.ndarray) -> tuple[float, float]:
     """Horizontal speed [m/s] and meteorological from-direction [deg, 0 = from north, 90 = from
     east, in [0, 360)] of an air-mass velocity [m/s, NED]."""
     n, e = float(wind_ned[0]), float(wind_ned[1])
-    return math.hypot(n, e), float(from_direction_deg(n, e))
+    # math, not vehicle.frames.from_direction_deg: the same formula without numpy's per-call cost
+    return math.hypot(n, e), math.degrees(math.atan2(-e, -n)) % 360.0
 
 
 def _every(mode_rate_hz: float, rate_hz: float) -> int:
@@ -130,20 +130,30 @@ def record_simulation(
     ys = np.linspace(yr[0], yr[1], max(2, round((yr[1] - yr[0]) / slice_resolution_m) + 1))
     grid_xy = np.column_stack([g.ravel() for g in np.meshgrid(xs, ys, indexing="ij")])
     curtain = _Curtain(sim, slice_resolution_m, -takeoff_z) if chem is not None else None
-    last: dict[str, object] = {"crashed": False, "chem_t": None}
+    last: dict[str, object] = {"crashed": False, "chem_t": None, "mode": None, "armed": None}
+
+    # Mode ticks on which something is due (the sensor samples on its own multiple of the mode ticks).
+    n_chem = _every(mode_rate, chem.setup.sensor.sample_rate_hz) if chem is not None else 0
+    periods = [n for n in (n_vehicle, n_series, n_slice, n_puffs, n_chem) if n]
 
     def hook(s: Simulation) -> None:
-        k = s.tick // s.world.slow_div
         t = s.t
-        pos = s.x[0:3]
-        wind: np.ndarray | None = None
         fc = s.fc
         # Mode and arming first: the path points of this tick then carry the new phase.
-        recorder.flight_mode(t, str(getattr(fc.mode, "value", fc.mode)))
-        recorder.armed(t, bool(fc.armed))
+        if fc.mode is not last["mode"]:
+            last["mode"] = fc.mode
+            recorder.flight_mode(t, str(getattr(fc.mode, "value", fc.mode)))
+        if fc.armed is not last["armed"]:
+            last["armed"] = fc.armed
+            recorder.armed(t, bool(fc.armed))
         if s.crashed and not last["crashed"]:
             recorder.text(t, "crash: touchdown too fast", "ERROR")
             last["crashed"] = True
+        k = s.tick // s.world.slow_div
+        if all(k % n for n in periods):  # the hook runs at every mode tick: most have nothing due
+            return
+        pos = s.x[0:3]
+        wind: np.ndarray | None = None
         if n_vehicle and k % n_vehicle == 0:
             wind = s.wind_at_vehicle
             recorder.vehicle(t, pos, s.x[6:10])

@@ -126,7 +126,18 @@ class RecorderBase:
         v = float(value)
         if not math.isfinite(v):
             return
-        self._push_row(entity, rr.Scalars, t, scalars=v)
+        # The hot path (tens of thousands of rows per run): no keyword dictionary, no archetype lookup.
+        buf = self._series.get(entity)
+        if buf is None:
+            buf = self._series[entity] = ColumnBuffer(rr.Scalars)
+            buf.fields["scalars"] = []
+        t = float(t)
+        if t > self.t_last:
+            self.t_last = t
+        if t < self.t_first:
+            self.t_first = t
+        buf.t.append(t)
+        buf.fields["scalars"].append(v)
 
     def _push_row(self, entity: str, archetype: Any, t: float, width: int = 1, **fields: Any) -> None:
         """Buffer one temporal row of ``archetype`` (``width`` instances per row) for :meth:`flush_series`."""
@@ -151,7 +162,8 @@ class RecorderBase:
             if not buf.t:
                 continue
             t = np.asarray(buf.t)
-            cols = {name: np.asarray(v, dtype=float) for name, v in buf.fields.items()}
+            cols = {name: np.asarray(v, dtype=np.uint8 if name == "colors" else float)  # colours: 0-255, not 0-1
+                    for name, v in buf.fields.items()}  # fmt: skip
             if buf.width == 1:
                 columns = buf.archetype.columns(**cols)
                 if buf.archetype is rr.Scalars:

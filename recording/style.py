@@ -33,6 +33,7 @@ C_ROTORS: tuple[Rgb, ...] = ((228, 26, 28), (55, 126, 184), (77, 175, 74), (152,
 C_SOURCE: Rgb = (200, 0, 0)  # the true source
 C_DECLARED: Rgb = (0, 140, 60)  # the declared source and its credible region
 C_VEHICLE: Rgb = (20, 20, 20)
+C_TRAIL_3D: Rgb = (30, 90, 170)  # the path in 3D (the map colours it by strategy state)
 C_FENCE: Rgb = (200, 60, 60)
 C_FURNITURE: Rgb = (40, 40, 40)  # north arrow, scale bar, labels
 #: Wind arrows on the map: darker than the path's colours (they start at the vehicle, over its path).
@@ -142,6 +143,6 @@ def posterior_image(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
 __all__ = [
     "AXES", "C_AUTOPILOT", "C_BAND", "C_DECLARED", "C_EST", "C_FENCE", "C_FURNITURE", "C_MAP_EST", "C_MAP_TRUTH",
     "C_MARK_DECLARED", "C_MARK_PHASE", "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH",
-    "C_TRUTH", "C_VEHICLE", "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT", "TEXT_LEVELS",
-    "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_image", "state_color",
+    "C_TRAIL_3D", "C_TRUTH", "C_VEHICLE", "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT",
+    "TEXT_LEVELS", "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_image", "state_color",
 ]  # fmt: skip

@@ -28,22 +28,23 @@ class FlightTally:
         self.total_m = 0.0
         self.search_m = 0.0
         self.reach_m = math.nan
-        self._prev: np.ndarray | None = None
+        self._prev: tuple[float, float, float] | None = None
         self._err2 = np.zeros(3)
         self.n_scored = 0
 
     def position(self, pos_ned: VecLike, armed: bool, searching: bool, declared: bool) -> None:
         """The true position [m] at a tick, with the phase: armed, searching, already declared."""
-        p = np.array(pos_ned, dtype=float)  # a copy: callers pass views of the live state
+        p = (float(pos_ned[0]), float(pos_ned[1]), float(pos_ned[2]))  # a copy: callers pass live views
         if armed and self.home is None:
-            self.home = p.copy()
-        if self._prev is not None and armed:
-            step = float(np.hypot(*(p[:2] - self._prev[:2])))
+            self.home = np.array(p)
+        prev = self._prev
+        if prev is not None and armed:
+            step = math.hypot(p[0] - prev[0], p[1] - prev[1])
             self.total_m += step
             if searching and not declared:
                 self.search_m += step
-                if math.isnan(self.reach_m) and len(self.sources) and \
-                        float(np.min(np.hypot(*(self.sources - p[:2]).T))) <= FOUND_RADIUS_M:  # fmt: skip
+                if math.isnan(self.reach_m) and any(math.hypot(p[0] - s[0], p[1] - s[1]) <= FOUND_RADIUS_M
+                                                    for s in self.sources):  # fmt: skip
                     self.reach_m = self.search_m
         self._prev = p
 

@@ -65,8 +65,8 @@ def test_vehicle_pose_and_path(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, quat = log.column("world/vehicle", "Transform3D:quaternion")
     np.testing.assert_allclose(np.linalg.norm(np.array([np.ravel(v) for v in quat]), axis=1), 1.0, atol=1e-5)
     _, strips = log.column("world/trail", "LineStrips3D:strips")
-    last = np.vstack([np.array(s) for s in strips[-1]])
-    assert last.shape[1] == 3 and -last[:, 2].min() > 4.0  # reaches flight altitude
+    path = np.vstack([np.array(row[0]) for row in strips])  # one segment per row
+    assert path.shape[1] == 3 and -path[:, 2].max() < 0.5 and -path[:, 2].min() > 4.0  # ground to altitude
     # The map is north up: map (x, y) = (east, -north), the same path.
     t_m, m = log.vectors("map/vehicle", "Points2D:positions")
     np.testing.assert_array_equal(t_m, t)
@@ -108,9 +108,10 @@ def test_chem_readings_on_a_log_scale(sim_run: tuple[Simulation, RrdLog]) -> Non
     t_th, th = log.scalars("chem/threshold_log10")
     np.testing.assert_allclose(th, math.log10(0.05))  # the sensor's detection limit, drawn across the run
     assert t_th[0] == 0.0 and t_th[-1] == pytest.approx(DURATION_S, abs=0.1)
-    # Every reading at or above the threshold is a hit on the map, at the vehicle.
-    _, hits = log.column("map/hits", "Points2D:positions")
-    assert len(hits[-1]) == int((c >= 0.05).sum()) > 0
+    # Every reading at or above the threshold is a hit on the map, at the vehicle (one row each).
+    t_h, _ = log.column("map/hits", "Points2D:positions")
+    assert len(t_h) == int((c >= 0.05).sum()) > 0
+    np.testing.assert_allclose(t_h, t[c >= 0.05])
 
 
 def test_plume_slice_image_and_curtain(sim_run: tuple[Simulation, RrdLog]) -> None:
@@ -201,7 +202,10 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     np.testing.assert_allclose(la.scalars("wind/direction/filtered")[1], 10.0)
     np.testing.assert_allclose(la.scalars("chem/value")[1], 0.2 * np.arange(20))
     _, hits = la.column("map/hits", "Points2D:positions")
-    assert len(hits[-1]) == 15  # readings 1.0 .. 3.8 mg/m^3 at or above the threshold
+    assert len(hits) == 15  # readings 1.0 .. 3.8 mg/m^3 at or above the threshold, at the vehicle
+    np.testing.assert_allclose([h[0] for h in hits], [[0.0, -0.5 * k] for k in range(5, 20)])
+    _, colors = la.column("map/hits", "Points2D:colors")
+    assert len({tuple(c) for c in colors}) > 1  # coloured by concentration
     t_dec, lab = la.column("map/sources/declared/label", "Points2D:labels")
     assert lab == [["declared 90%"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
     assert la.texts("log/strategy") == [(pytest.approx(1.0), "surge")]
@@ -216,18 +220,30 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     assert "rotors" not in {o for c, o, _ in la.blueprint_views() if c == "TimeSeries"}
 
 
-def test_trail_is_thinned_but_keeps_start_and_end(tmp_path: Path) -> None:
-    path = tmp_path / "trail.rrd"
-    with RunRecorder(path, trail_max_points=10, trail_every_s=0.0) as rec:
+def test_path_segments_join_and_carry_the_state_colour(tmp_path: Path) -> None:
+    path = tmp_path / "path.rrd"
+    with RunRecorder(path, strategy="surge-cast") as rec:
         for k in range(50):
+            if k == 20:  # before: on the ground, the path is grey
+                rec.armed(2.0, True)
+                rec.flight_mode(2.0, "OFFBOARD")
+                rec.strategy_state(2.0, "surge")
             rec.vehicle(0.1 * k, [float(k), 0.0, -5.0], [1.0, 0.0, 0.0, 0.0])
-    t, strips = RrdLog(path).column("world/trail", "LineStrips3D:strips")
-    last = np.vstack([np.array(s) for s in strips[-1]])
-    assert len(last) <= 11
-    np.testing.assert_allclose(last[0], [0.0, 0.0, -5.0])
-    np.testing.assert_allclose(last[-1], [49.0, 0.0, -5.0])
-    assert (np.diff(last[:, 0]) > 0).all()
-    assert t[-1] == pytest.approx(4.9)
+    log = RrdLog(path)
+    t, strips = log.column("map/path", "LineStrips2D:strips")
+    segs = np.array([row[0] for row in strips])  # (N, 2 points, map x/y)
+    assert len(segs) == 49 and (np.diff(t) > 0).all()
+    np.testing.assert_allclose(segs[1:, 0], segs[:-1, 1])  # each segment starts where the last ended
+    np.testing.assert_allclose(segs[0, 0], [0.0, 0.0]) and np.testing.assert_allclose(segs[-1, 1], [0.0, -49.0])
+    _, colors = log.column("map/path", "LineStrips2D:colors")
+    from recording.style import state_color
+
+    def rgb(c: int) -> tuple[int, int, int]:  # rerun packs colours as 0xRRGGBBAA
+        return (c >> 24) & 255, (c >> 16) & 255, (c >> 8) & 255
+
+    assert rgb(colors[0][0]) == state_color("ground") and rgb(colors[-1][0]) == state_color("surge")
+    lay = log.layout()
+    assert lay is not None and lay.bounds_ne[1] > 49.0  # the map's extent covers the path
 
 
 def test_marker_lines_are_vertical_and_separated(tmp_path: Path) -> None:

@@ -67,6 +67,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wall-limit", type=float, default=300.0, metavar="S",
                    help="give up after this many wall seconds (default 300)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    p.add_argument("--no-rrd", action="store_true",
+                   help="write no Rerun recording (the .tlog and .json are still written)")
     p.set_defaults(func=run)
 
 
@@ -241,7 +243,8 @@ def run(args: argparse.Namespace) -> int:
     logs = Path(args.logs)
     logs.mkdir(parents=True, exist_ok=True)
     base = logs / f"{stamp}-{sc.name}-{args.strategy}"
-    files = {k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json")}
+    files = {k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json") if not (k == "rrd" and args.no_rrd)}
+    rrd_args = [] if args.no_rrd else ["--rrd", str(files["rrd"]), "--rrd-strategy", args.strategy]
     truth_path = Path(f"{base}.truth.json")
     console = Console(stderr=True)
     live = console.is_terminal
@@ -265,8 +268,7 @@ def run(args: argparse.Namespace) -> int:
         sitl = Proc("sitl", _windseek("sitl", args.scenario, "--speed", f"{args.speed:g}", "--seed", str(seed),
                                       "--udp-bind", "127.0.0.1:0",
                                       "--udp", f"127.0.0.1:{p_est}", f"127.0.0.1:{p_mis}", f"127.0.0.1:{obs.port}",
-                                      "--forward", "--tlog", str(files["tlog"]), "--rrd", str(files["rrd"]),
-                                      "--rrd-strategy", args.strategy, f"--geofence={fence}",
+                                      "--forward", "--tlog", str(files["tlog"]), *rrd_args, f"--geofence={fence}",
                                       "--exit-summary", str(truth_path)),
                     Path(f"{base}.sitl.log"))  # fmt: skip
         procs.append(sitl)
@@ -339,12 +341,13 @@ def run(args: argparse.Namespace) -> int:
     wall_s = time.monotonic() - wall0
     summary = make_summary(sc.name, args.strategy, seed, args.speed, mission, truth, wall_s, files)
     files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
-    try:  # the recording carries the same summary as the one printed (and the .json)
-        from recording.finalize import add_demo_result
+    if "rrd" in files:
+        try:  # the recording carries the same summary as the one printed (and the .json)
+            from recording.finalize import add_demo_result
 
-        add_demo_result(files["rrd"], summary)
-    except (OSError, RuntimeError, ValueError) as e:
-        note(f"  recording: the summary could not be added to {files['rrd']}: {e}")
+            add_demo_result(files["rrd"], summary)
+        except (OSError, RuntimeError, ValueError) as e:
+            note(f"  recording: the summary could not be added to {files['rrd']}: {e}")
     with contextlib.suppress(OSError):
         truth_path.unlink()
     print_summary(summary, note)
@@ -421,6 +424,7 @@ def print_summary(s: dict[str, Any], note: Any) -> None:
     note(f"  wind RMSE vs truth N {f(rm[0], '.2f')} E {f(rm[1], '.2f')} D {f(rm[2], '.2f')} m/s "
          f"(horizontal {f(s['wind_rmse_horizontal_m_s'], '.2f')} m/s, {s['wind_estimates_scored']} WIND_COV "
          "while airborne)")
-    note(f"  recording          {s['files']['rrd']}   (view: rerun {s['files']['rrd']})")
+    if "rrd" in s["files"]:
+        note(f"  recording          {s['files']['rrd']}   (view: rerun {s['files']['rrd']})")
     note(f"  telemetry log      {s['files']['tlog']}")
     note(f"  summary            {s['files']['json']}")
