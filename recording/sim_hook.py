@@ -135,6 +135,7 @@ def record_simulation(
     # Mode ticks on which something is due (the sensor samples on its own multiple of the mode ticks).
     n_chem = _every(mode_rate, chem.setup.sensor.sample_rate_hz) if chem is not None else 0
     periods = [n for n in (n_vehicle, n_series, n_slice, n_puffs, n_chem) if n]
+    step = math.gcd(*periods) if periods else 1  # nothing is due on the ticks between its multiples
 
     def hook(s: Simulation) -> None:
         t = s.t
@@ -150,7 +151,7 @@ def record_simulation(
             recorder.text(t, "crash: touchdown too fast", "ERROR")
             last["crashed"] = True
         k = s.tick // s.world.slow_div
-        if all(k % n for n in periods):  # the hook runs at every mode tick: most have nothing due
+        if k % step:  # the hook runs at every mode tick: most have nothing due
             return
         pos = s.x[0:3]
         wind: np.ndarray | None = None
