@@ -4,11 +4,12 @@ The map is drawn north up: a NED point (n, e) is map point (x, y) = (e, -n) (the
 points down). The 3D world is NED itself with ``ViewCoordinates.FRD`` (the viewer then knows -z is
 up). Markers, paths and arrows use radii in UI points, so they keep their size on screen whatever
 the scene's extent; the plume is drawn as a concentration field on a light-to-dark colour map
-(transparent below the colour scale's low end on the map, small dots in 3D), never over the path.
+(an image transparent below the colour scale's low end on the map, the vertical slice along the wind
+as small dots in 3D), never over the path.
 
 Entity paths::
 
-    map/plume, world/plume/slice       concentration at flight altitude (map image, 3D dots)
+    map/plume                          concentration at flight altitude (an image)
     world/plume/curtain                concentration on the vertical plane along the wind through the source
     world/plume/puffs                  puff centres (small dots; off unless a caller logs them)
     map/posterior/{image,credible}     a strategy's source posterior and its credible circle
@@ -273,10 +274,9 @@ class SceneMixin(RecorderBase):
     # ------------------------------------------------------------------ plume and posterior
     def plume_slice(self, t: float, xs: np.ndarray, ys: np.ndarray, C: np.ndarray, z: float) -> None:
         """Horizontal concentration slice at NED depth ``z`` [m]: ``C[i, j]`` [mg/m^3] at (``xs[i]``
-        north, ``ys[j]`` east) on a regular grid (``sitl.world.plume.*.slice_grid``'s layout).
-
-        The map gets an image (transparent below the colour scale's low end); the 3D view small
-        dots for the cells above it."""
+        north, ``ys[j]`` east) on a regular grid (``sitl.world.plume.*.slice_grid``'s layout), drawn
+        on the map as an image (transparent below the colour scale's low end). The 3D view shows the
+        vertical slice instead (:meth:`plume_curtain`): the map already shows this one."""
         xs = np.asarray(xs, dtype=float)
         ys = np.asarray(ys, dtype=float)
         conc = np.asarray(C, dtype=float).reshape(len(xs), len(ys))
@@ -290,10 +290,6 @@ class SceneMixin(RecorderBase):
                                                      scale=[dy, dx, 1.0]))  # fmt: skip
         # Opacity below 1: the viewer then blends by the alpha channel (at 1 it draws the image opaque).
         self.rec.log("map/plume", rr.Image(conc_image(conc, *self.c_range_mg_m3), opacity=0.99, draw_order=-10.0))
-        i, j = np.nonzero(conc >= self.c_range_mg_m3[0])
-        pts = np.column_stack([xs[i], ys[j], np.full(len(i), float(z))])
-        self.rec.log("world/plume/slice", rr.Points3D(pts, radii=0.15 * min(dx, dy),
-                                                      colors=log_colormap(conc[i, j], *self.c_range_mg_m3)))
 
     def plume_curtain(self, t: float, origin_ne: VecLike, dir_ne: VecLike, s: np.ndarray,
                       z: np.ndarray, C: np.ndarray) -> None:  # fmt: skip

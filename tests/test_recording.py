@@ -38,7 +38,7 @@ def test_sim_recording_has_expected_entities_on_one_timeline(sim_run: tuple[Simu
     _, log = sim_run
     temporal = set(log.temporal_entity_paths())
     expected = {
-        "world/vehicle", "world/trail", "world/wind/truth", "world/plume/slice", "world/plume/curtain",
+        "world/vehicle", "world/trail", "world/wind/truth", "world/plume/curtain",
         "map/vehicle", "map/path", "map/plume", "map/wind/truth", "phases/mission", "phases/mode",
         "wind/north/truth", "wind/east/truth", "wind/down/truth", "wind/speed/truth", "wind/direction/truth",
         "rotors/1", "rotors/2", "rotors/3", "rotors/4", "chem/value", "chem/log10", "chem/threshold_log10",
@@ -116,14 +116,17 @@ def test_chem_readings_on_a_log_scale(sim_run: tuple[Simulation, RrdLog]) -> Non
 
 def test_plume_slice_image_and_curtain(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, log = sim_run
-    t, slices = log.column("world/plume/slice", "Points3D:positions")
+    t, fmt = log.column("map/plume", "Image:format")
     assert len(t) == 8  # 0.5 Hz over 15 s
-    for pts in slices:
-        p = np.array(pts)
-        assert p[:, 0].min() >= -30.0 and p[:, 0].max() <= 90.0 and np.abs(p[:, 1]).max() <= 30.0
-        assert np.ptp(p[:, 2]) == 0.0  # one altitude
-    _, fmt = log.column("map/plume", "Image:format")
     assert fmt[-1][0]["width"] == 31 and fmt[-1][0]["height"] == 61  # 2 m cells, north up
+    # The grid's north-west corner, NED (n, e) = (90 + 1, -30 - 1) m, is map (x, y) = (e, -n); 2 m per pixel.
+    _, tr = log.vectors("map/plume", "Transform3D:translation")
+    np.testing.assert_allclose(tr[-1], [-31.0, -91.0, 0.0])
+    _, buf = log.column("map/plume", "Image:buffer")
+    alpha = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(61, 31, 4)[..., 3].astype(float)
+    assert (alpha > 0).sum() > 10  # the plume, transparent around it
+    east = -30.0 + 2.0 * np.arange(31)
+    assert abs((alpha.sum(axis=0) * east).sum() / alpha.sum()) < 10.0  # along the north-south axis of the wind
     _, opacity = log.column("map/plume", "Image:opacity")
     assert opacity[-1][0] < 1.0  # below 1 the viewer blends by the alpha channel (transparent edge)
     _, curtain = log.column("world/plume/curtain", "Points3D:positions")
