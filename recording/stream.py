@@ -5,13 +5,16 @@ series, the vehicle pose, wind arrows) are buffered in Python lists and sent as 
 (``send_columns``) every ``series_flush_s`` of vehicle time: a buffered row costs a few
 microseconds where a ``log`` call costs 30-100 us. It also keeps the values of the scalar series
 it sent (decimated beyond ``VALUES_KEEP`` per series), so the layout can fit each plot's axis to
-the data when the recording closes.
+the data when the recording closes. :class:`CpuMeter` lets a caller say what recording cost it.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +64,45 @@ class SeriesValues:
             self.t, self.v = self.t[::2], self.v[::2]
 
 
+def _task_ids() -> set[str]:
+    """Thread ids of this process (Linux /proc; empty elsewhere)."""
+    try:
+        return set(os.listdir("/proc/self/task"))
+    except OSError:
+        return set()
+
+
+def _task_cpu_s(tid: str) -> float:
+    try:
+        with open(f"/proc/self/task/{tid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+class CpuMeter:
+    """CPU time a caller spends recording: ``meter(fn, *args)`` runs ``fn`` and adds the calling
+    thread's CPU time it took (``time.thread_time``, about a microsecond per call)."""
+
+    def __init__(self) -> None:
+        self.cpu_s = 0.0
+        self.p0 = time.process_time()
+
+    def __call__(self, fn: Callable[..., Any], *args: Any) -> Any:
+        t0 = time.thread_time()
+        try:
+            return fn(*args)
+        finally:
+            self.cpu_s += time.thread_time() - t0
+
+    def report(self, rec: RecorderBase) -> dict[str, float]:
+        """The recording's cost: the caller's part, rerun's threads, and the whole process since the
+        meter started [CPU s] (for the ``recording_cost`` property; ``benchmarks/recording_cost.py``)."""
+        return {"recorder_cpu_s": round(self.cpu_s, 4), "rerun_cpu_s": round(rec.rerun_cpu_s(), 4),
+                "process_cpu_s": round(time.process_time() - self.p0, 4)}  # fmt: skip
+
+
 class RecorderBase:
     """A Rerun recording stream saved to ``path`` with its own recording id, and the buffers.
 
@@ -81,10 +123,12 @@ class RecorderBase:
         self.series_flush_s = float(series_flush_s)
         # A fresh id per instance: the default id is shared process-wide, which would merge two
         # recorders (or two test runs) into one recording.
+        before = _task_ids()
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id or uuid.uuid4())
         # Wall-clock "log_time" means nothing for a lockstep simulation and costs per call.
         self.rec.set_log_time_enabled(False)
         self.rec.save(self.path)
+        self._rerun_tids = _task_ids() - before  # rerun's own threads (encoding, writing)
         self.closed = False
         self.t_first = math.inf
         self.t_last = -math.inf
@@ -183,6 +227,10 @@ class RecorderBase:
         """Whether any row of this entity was sent or is buffered."""
         return entity in self._series
 
+    def rerun_cpu_s(self) -> float:
+        """CPU seconds rerun's threads of this recording used so far (0 where /proc is missing)."""
+        return sum(_task_cpu_s(t) for t in self._rerun_tids)
+
     # ------------------------------------------------------------------ properties and end
     def property(self, name: str, **values: Any) -> None:
         """A recording property (shown in the viewer's recording panel); None values are left out."""
@@ -197,4 +245,4 @@ class RecorderBase:
         self.closed = True
 
 
-__all__ = ["VALUES_KEEP", "ColumnBuffer", "RecorderBase", "SeriesValues"]
+__all__ = ["VALUES_KEEP", "ColumnBuffer", "CpuMeter", "RecorderBase", "SeriesValues"]

@@ -32,6 +32,7 @@ import numpy as np
 
 from recording.recorder import RunRecorder
 from recording.sim_hook import record_simulation, wind_speed_from_deg
+from recording.stream import CpuMeter
 from recording.summary import RunSummary
 from recording.tally import FlightTally
 
@@ -80,13 +81,15 @@ class TrialRecorder:
 
     def attach(self, sim: Any, vehicle: Any, strategy: Any, params: Any = None) -> None:
         """Start recording ``sim`` flown by ``vehicle`` (a ``LockstepVehicle``) with ``strategy``."""
+        self.meter = CpuMeter()  # what recording costs the trial: the recording_cost property
         self.sim, self.vehicle, self.strategy = sim, vehicle, strategy
         self.home = np.asarray(sim.position, dtype=float).copy()
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
-        self.rec = RunRecorder(self.path, scenario=sim.scenario.name, strategy=getattr(strategy, "name", None),
-                               seed=sim.seed, **self.recorder_kw)  # fmt: skip
-        record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"], series_hz=self.rates["series_hz"],
-                          slice_hz=self.rates["slice_hz"])  # fmt: skip
+        self.rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
+                                                  strategy=getattr(strategy, "name", None), **self.recorder_kw))
+        hook = record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"],
+                                 series_hz=self.rates["series_hz"], slice_hz=self.rates["slice_hz"])  # fmt: skip
+        sim.step_hooks[sim.step_hooks.index(hook)] = lambda s: self.meter(hook, s)
         publish = vehicle.publish
 
         def tapped(pairs: list[tuple[str, str]]) -> None:
@@ -95,7 +98,7 @@ class TrialRecorder:
                 self._on_status(sim.t, name, json.loads(fields))
 
         vehicle.publish = tapped  # what a MAVSDK runner would send over MAVLink
-        vehicle.tick_hooks.append(self._tick)
+        vehicle.tick_hooks.append(lambda t: self.meter(self._tick, t))
 
     def _on_status(self, t: float, name: str, f: dict[str, Any]) -> None:
         rec = self.rec
@@ -160,7 +163,8 @@ class TrialRecorder:
         """Write the summary of ``result`` and close the recording."""
         if self.rec is None:
             return
-        self.rec.summary(self.summary(result))
+        self.meter(self.rec.summary, self.summary(result))
+        self.rec.property("recording_cost", sim_s=round(self.sim.t, 3), **self.meter.report(self.rec))
         self.rec.close()
 
 

@@ -51,6 +51,10 @@ def test_trial_summary_matches_the_result(trial: tuple[object, RrdLog]) -> None:
     doc = log.document("summary")
     assert doc is not None and "**FOUND**" in doc and f"declared error {result.error_m:.1f} m" in doc
     assert log.property_value("result", "found") is True
+    # What recording cost the trial (benchmarks/recording_cost.py reads it): a part of the process's CPU.
+    cost = {k: log.property_value("recording_cost", k) for k in ("recorder_cpu_s", "rerun_cpu_s", "process_cpu_s")}
+    assert 0.0 < cost["recorder_cpu_s"] < cost["process_cpu_s"] and cost["rerun_cpu_s"] >= 0.0, cost
+    assert log.property_value("recording_cost", "sim_s") >= result.time_s - 0.05  # the recording spans the trial
 
 
 def test_trial_markers_on_the_vehicle_clock(trial: tuple[object, RrdLog]) -> None:
