@@ -144,6 +144,9 @@ def test_wire_wind_band_and_summary(flight: tuple[_Flight, Path]) -> None:
     assert 30.0 < s.search_path_m < 45.0 and s.total_path_m > s.search_path_m
     assert s.start_distance_m == pytest.approx(60.0, abs=0.5) and s.reach_path_m is None  # never within 5 m
     assert "WIND_COV from system 1 component 191" in s.wind_source
+    cost = {k: log.property_value("recording_cost", k) for k in ("recorder_cpu_s", "rerun_cpu_s", "process_cpu_s")}
+    assert 0.0 < cost["recorder_cpu_s"] < cost["process_cpu_s"] and cost["rerun_cpu_s"] >= 0.0, cost
+    assert log.property_value("recording_cost", "sim_s") == pytest.approx(f.sim.t, abs=0.01)  # the recorder began at 0
     doc = log.document("summary")
     assert doc is not None and "**NOT FOUND**" in doc and "declared error 22.0 m" in doc
     lay = log.layout()

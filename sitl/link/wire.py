@@ -43,7 +43,6 @@ import numpy as np
 
 from sitl.link.endpoint import COMPONENT_ID, SYSTEM_ID, Link
 from sitl.link.transports import UdpTransport
-from vehicle.frames import from_direction_deg
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT, MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
 
@@ -269,30 +268,62 @@ class WireRecorder:
                  filter_cutoff_hz: float = 0.05) -> None:  # fmt: skip
         from recording.recorder import RunRecorder
         from recording.sim_hook import record_simulation
+        from recording.stream import CpuMeter
         from recording.tally import FlightTally
 
         sim = link.sim
         self.link = link
         self.strategy = strategy
-        self.rec: RunRecorder = RunRecorder(path, scenario=sim.scenario.name, strategy=strategy, seed=sim.seed)
+        # Rates and sends chosen so the recording costs the SITL under 10 % of its CPU
+        # (benchmarks/recording_cost.py): pose and true series at 5 Hz (the estimate at its own
+        # rate), plume slices every 5 s, the buffered rows sent every 15 s of simulation (a live
+        # viewer lags by that much).
+        self.meter = CpuMeter()  # what recording costs this process: the recording_cost property
+        self.t0 = sim.t
+        self.rec: RunRecorder = self.meter(lambda: RunRecorder(path, scenario=sim.scenario.name, strategy=strategy,
+                                                               seed=sim.seed, series_flush_s=15.0))  # fmt: skip
         if geofence_ned is not None:
             self.rec.geofence(*geofence_ned)
-        record_simulation(sim, self.rec)
+        hook = record_simulation(sim, self.rec, vehicle_hz=5.0, series_hz=5.0, slice_hz=0.2)
+        sim.step_hooks[sim.step_hooks.index(hook)] = lambda s: self.meter(hook, s)
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
-        self.truth = _Truth(rate_hz=sim.scenario.mode_rate_hz)
+        # The path (t, n, e, d) at every mode tick of the last 60 s: an estimate is scored against the
+        # wind field at its nearest tick's time and position (estimates arrive late). The field is
+        # evaluated only then, not every tick; positions are kept exactly because the turbulent field
+        # changes by ~0.1 m/s over 0.1 m (an interpolated position would score the estimate wrongly).
+        rate = sim.scenario.mode_rate_hz
+        self.track: deque[tuple[float, float, float, float]] = deque(maxlen=max(1, int(60.0 * rate)))
+        self.tally_every = max(1, round(rate / 10.0))  # the path length and phases' tally at 10 Hz
+        self._k = -1
         self.tau_s = 1.0 / (2.0 * math.pi * filter_cutoff_hz)
         self._filt: np.ndarray | None = None
         self._t_filt = 0.0
         self.estimates = 0
         self.wind_from: tuple[int, int] | None = None
-        sim.step_hooks.append(self.on_tick)
-        link.endpoint.rx_hooks.append(self.on_message)
+        sim.step_hooks.append(lambda s: self.meter(self.on_tick, s))
+        link.endpoint.rx_hooks.append(lambda msg, lk: self.meter(self.on_message, msg, lk))
 
     def on_tick(self, s: Simulation) -> None:
-        ph = self.rec.phases
-        pos = s.x[0:3]
-        self.truth.add(s.t, s.wind_at_vehicle, -float(pos[2]))
-        self.tally.position(pos, ph.armed, ph.searching, ph.declared)
+        """The vehicle's position at every mode tick (the true-wind lookups); the tally at 10 Hz."""
+        x = s.x
+        self.track.append((s.t, float(x[0]), float(x[1]), float(x[2])))
+        self._k += 1
+        if self._k % self.tally_every == 0:
+            ph = self.rec.phases
+            self.tally.position(x[0:3], ph.armed, ph.searching, ph.declared)
+
+    def true_wind(self, t: float) -> tuple[np.ndarray, float] | None:
+        """True wind [m/s NED] at the vehicle at the mode tick nearest to time ``t`` [s] and the height
+        then [m], or None when no kept tick is within 0.1 s."""
+        tr = self.track
+        if not tr:
+            return None
+        i = bisect.bisect_left(tr, (t,))
+        near = min((tr[j] for j in (i - 1, i) if 0 <= j < len(tr)), key=lambda r: abs(r[0] - t))
+        if abs(near[0] - t) > 0.1:
+            return None
+        pos = np.array(near[1:])
+        return np.asarray(self.link.sim.wind.velocity(near[0], pos), dtype=float), -float(pos[2])
 
     def on_message(self, msg: Any, lk: Link) -> None:
         mtype = msg.get_type()
@@ -300,9 +331,10 @@ class WireRecorder:
         src = (msg.get_srcSystem(), msg.get_srcComponent())
         if mtype == "WIND_COV":
             t = msg.time_usec * 1e-6
-            w = np.array([msg.wind_x, msg.wind_y, msg.wind_z], dtype=float)
-            if not np.all(np.isfinite(w)):
+            wx, wy, wz = float(msg.wind_x), float(msg.wind_y), float(msg.wind_z)
+            if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)):
                 return
+            w = np.array([wx, wy, wz])
             self.estimates += 1
             self.wind_from = src
             sh = math.sqrt(max(float(msg.var_horiz), 0.0) / 2.0)
@@ -315,10 +347,11 @@ class WireRecorder:
                 a = min(1.0, max(0.0, t - self._t_filt) / self.tau_s)
                 self._filt += a * (w[:2] - self._filt)
             self._t_filt = t
-            f = self._filt
-            rec.wind_speed_dir(t, math.hypot(w[0], w[1]), float(from_direction_deg(w[0], w[1])),
-                               math.hypot(f[0], f[1]), float(from_direction_deg(f[0], f[1])))  # fmt: skip
-            tr = self.truth.at(t)
+            fn, fe = float(self._filt[0]), float(self._filt[1])
+            # From-directions with math (vehicle.frames.from_direction_deg's numpy costs ~40 us a call).
+            rec.wind_speed_dir(t, math.hypot(wx, wy), math.degrees(math.atan2(-wy, -wx)) % 360.0,
+                               math.hypot(fn, fe), math.degrees(math.atan2(-fe, -fn)) % 360.0)  # fmt: skip
+            tr = self.true_wind(t) if self.estimates % 2 == 0 else None  # every other one: the field is costly
             if tr is not None:
                 self.tally.wind(w, tr[0], tr[1])
         elif mtype == "STATUSTEXT":
@@ -355,7 +388,8 @@ class WireRecorder:
         return s
 
     def close(self) -> None:
-        self.rec.summary(self.summary())
+        self.meter(self.rec.summary, self.summary())
+        self.rec.property("recording_cost", sim_s=round(self.link.sim.t - self.t0, 3), **self.meter.report(self.rec))
         self.rec.close()
 
 
