@@ -32,6 +32,7 @@ recording id and never touches rerun's global recording, so several can coexist 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 
@@ -288,9 +289,10 @@ class RunRecorder(EventsMixin):
             lay.missing["map"] = "no positions: no path to draw"
         return lay
 
-    def close(self) -> None:
+    def close(self, cost: Callable[[], dict[str, float]] | None = None) -> None:
         """Send everything buffered, the markers, the summary and the final layout; close the file.
-        Idempotent."""
+        ``cost`` gives the ``recording_cost`` property, asked for last (all but the final flush
+        counted). Idempotent."""
         if self.closed:
             return
         self.flush_series()
@@ -313,6 +315,8 @@ class RunRecorder(EventsMixin):
         self.property("layout", json=lay.to_json())
         if self.blueprint:
             self.rec.send_blueprint(make_blueprint(lay), make_active=True, make_default=True)
+        if cost is not None:
+            self.property("recording_cost", **cost())
         self._close_stream()
 
     def __enter__(self) -> RunRecorder:

@@ -83,23 +83,28 @@ def _task_cpu_s(tid: str) -> float:
 
 class CpuMeter:
     """CPU time a caller spends recording: ``meter(fn, *args)`` runs ``fn`` and adds the calling
-    thread's CPU time it took (``time.thread_time``, about a microsecond per call)."""
+    thread's CPU time it took (``time.thread_time``, about a microsecond per call). Calls are not
+    nested; :meth:`report` counts a call in progress up to that moment (a recorder's ``close``
+    reports its cost from inside, before the stream closes)."""
 
     def __init__(self) -> None:
         self.cpu_s = 0.0
         self.p0 = time.process_time()
+        self._t_call: float | None = None  # thread_time at the start of the call in progress
 
     def __call__(self, fn: Callable[..., Any], *args: Any) -> Any:
-        t0 = time.thread_time()
+        t0 = self._t_call = time.thread_time()
         try:
             return fn(*args)
         finally:
+            self._t_call = None
             self.cpu_s += time.thread_time() - t0
 
     def report(self, rec: RecorderBase) -> dict[str, float]:
         """The recording's cost: the caller's part, rerun's threads, and the whole process since the
         meter started [CPU s] (for the ``recording_cost`` property; ``benchmarks/recording_cost.py``)."""
-        return {"recorder_cpu_s": round(self.cpu_s, 4), "rerun_cpu_s": round(rec.rerun_cpu_s(), 4),
+        cpu = self.cpu_s + (time.thread_time() - self._t_call if self._t_call is not None else 0.0)
+        return {"recorder_cpu_s": round(cpu, 4), "rerun_cpu_s": round(rec.rerun_cpu_s(), 4),
                 "process_cpu_s": round(time.process_time() - self.p0, 4)}  # fmt: skip
 
 

@@ -92,10 +92,13 @@ class TrialRecorder:
         sim.step_hooks[sim.step_hooks.index(hook)] = lambda s: self.meter(hook, s)
         publish = vehicle.publish
 
-        def tapped(pairs: list[tuple[str, str]]) -> None:
-            publish(pairs)
+        def record(pairs: list[tuple[str, str]]) -> None:
             for name, fields in pairs:
                 self._on_status(sim.t, name, json.loads(fields))
+
+        def tapped(pairs: list[tuple[str, str]]) -> None:
+            publish(pairs)
+            self.meter(record, pairs)
 
         vehicle.publish = tapped  # what a MAVSDK runner would send over MAVLink
         vehicle.tick_hooks.append(lambda t: self.meter(self._tick, t))
@@ -161,11 +164,11 @@ class TrialRecorder:
 
     def finish(self, result: Any) -> None:
         """Write the summary of ``result`` and close the recording."""
-        if self.rec is None:
+        rec = self.rec
+        if rec is None:
             return
-        self.meter(self.rec.summary, self.summary(result))
-        self.rec.property("recording_cost", sim_s=round(self.sim.t, 3), **self.meter.report(self.rec))
-        self.rec.close()
+        self.meter(lambda: rec.summary(self.summary(result)))
+        self.meter(rec.close, lambda: {"sim_s": round(self.sim.t, 3), **self.meter.report(rec)})
 
 
 def main(argv: list[str] | None = None) -> int:

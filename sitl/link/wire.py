@@ -388,9 +388,9 @@ class WireRecorder:
         return s
 
     def close(self) -> None:
-        self.meter(self.rec.summary, self.summary())
-        self.rec.property("recording_cost", sim_s=round(self.link.sim.t - self.t0, 3), **self.meter.report(self.rec))
-        self.rec.close()
+        rec = self.rec
+        self.meter(lambda: rec.summary(self.summary()))
+        self.meter(rec.close, lambda: {"sim_s": round(self.link.sim.t - self.t0, 3), **self.meter.report(rec)})
 
 
 __all__ = ["AIRBORNE_M", "Forwarder", "TlogWriter", "TruthSummary", "WireRecorder", "addressed_to_autopilot"]
