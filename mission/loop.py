@@ -272,8 +272,10 @@ class MissionLoop:
             self.t_declared = float(sp.info.get("t_declared", t))
             res.time_s = round(self.t_declared - self.t_arm, 2)
             res.path_m = round(path, 2)
+            # One clock: t is vehicle time, as in every other line and in the recording.
             self.say(f"source declared at N {res.declared_ned[0]:.1f} E {res.declared_ned[1]:.1f} m "
-                     f"(confidence {res.confidence:.2f}) at t = {res.time_s:.1f} s")  # fmt: skip
+                     f"(confidence {res.confidence:.2f}) at t = {self.t_declared:.1f} s, "
+                     f"{res.time_s:.1f} s after arming")  # fmt: skip
         if res.declared_ned is None:
             res.path_m = round(path, 2)
         res.state = sp.state

@@ -7,8 +7,11 @@ typical run) and queried by entity path. Paths may be given with or without the 
     from recording.read import RrdLog
     log = RrdLog("logs/run.rrd")
     log.entity_paths()                     # ['chem/threshold', 'chem/value', ..., 'world/vehicle']
-    t, v = log.scalars("rotors/1")         # t [s] (N,), v (N,) sorted by sim_time
+    t, v = log.scalars("rotors/1")         # t [s] (N,), v (N,) sorted by vehicle time
     t, p = log.vectors("world/vehicle", "Transform3D:translation")   # (N,), (N, 3)
+    log.summary()                          # the RunSummary the recording carries
+    log.states("phases/mission")           # [(t, "take-off"), (t, "search"), ...]
+    log.layout()                           # the Layout facts (plot ranges, map extent, ...)
 """
 
 from __future__ import annotations
@@ -19,7 +22,9 @@ from typing import Any
 import numpy as np
 from rerun.chunk import Chunk, RrdReader
 
-from recording.rerun_log import TIMELINE
+from recording.layout import Layout
+from recording.style import TIMELINE
+from recording.summary import RunSummary
 
 SCALARS = "Scalars:scalars"
 
@@ -74,10 +79,24 @@ class RrdLog:
             self._blueprint_paths = sorted(paths)
         return self._blueprint_paths
 
-    def blueprint_views(self) -> list[tuple[str, str, str]]:
-        """Views of the blueprint(s): (class, origin, name), e.g. ("Spatial3D", "world", "world (NED)")."""
-        views: list[tuple[str, str, str]] = []
+    def _final_blueprint(self) -> Any:
+        """The blueprint store sent last (a recorder sends one at the start and the final one at close)."""
+        best, best_t = None, -1
         for store in self._reader.blueprints():
+            t = -1
+            for c in self._reader.stream(store=store).to_chunks():
+                rb = c.to_record_batch()
+                if "log_time" in rb.schema.names and rb.num_rows:
+                    t = max(t, max(v or -1 for v in rb.column("log_time").cast("int64").to_pylist()))
+            if t > best_t:
+                best, best_t = store, t
+        return best
+
+    def blueprint_views(self) -> list[tuple[str, str, str]]:
+        """Views of the final blueprint: (class, origin, name), e.g. ("2D", "map", "map (north up)")."""
+        views: list[tuple[str, str, str]] = []
+        final = self._final_blueprint()
+        for store in [final] if final is not None else []:
             for c in self._reader.stream(store=store).to_chunks():
                 rb = c.to_record_batch()
                 if "ViewBlueprint:class_identifier" not in rb.schema.names:
@@ -93,7 +112,7 @@ class RrdLog:
                     d.get("ViewBlueprint:display_name", [None] * rb.num_rows),
                     strict=True,
                 ):
-                    views.append((cls[0] if cls else "", origin[0] if origin else "", name[0] if name else ""))
+                    views.append((cls[0] if cls else "", _norm(origin[0]) if origin else "", name[0] if name else ""))
         return views
 
     # ------------------------------------------------------------------ values
@@ -140,6 +159,71 @@ class RrdLog:
         t, vals = self.column(entity, component, timeline)
         rows = [np.asarray(v[0] if v and isinstance(v[0], (list, tuple)) else v, dtype=float) for v in vals]
         return t, (np.vstack(rows) if rows else np.zeros((0, 3)))
+
+
+    # ------------------------------------------------------------------ documents and properties
+    def texts(self, entity: str, component: str = "TextLog:text") -> list[tuple[float, str]]:
+        """(t [s], text) of a text log (or, with ``component="TextDocument:text"``, a document; t NaN if static)."""
+        t, vals = self.column(entity, component)
+        return [(float(ti), str(v[0] if isinstance(v, list) else v)) for ti, v in zip(t, vals, strict=True)]
+
+    def document(self, entity: str) -> str | None:
+        """The latest text of a TextDocument entity (e.g. ``summary``, ``missing/chem``), or None."""
+        docs = self.texts(entity, "TextDocument:text")
+        return docs[-1][1] if docs else None
+
+    def states(self, entity: str) -> list[tuple[float, str]]:
+        """(t [s], state) of a StateChange entity (``phases/mission``, ``phases/strategy``, ``phases/mode``)."""
+        return self.texts(entity, "StateChange:state")
+
+    def property_value(self, name: str, field: str) -> Any:
+        """One field of a recording property (e.g. ``("result", "error_m")``), or None."""
+        _, vals = self.column(f"__properties/{name}", field)
+        if not vals:
+            return None
+        v = vals[-1]
+        return v[0] if isinstance(v, list) and len(v) == 1 else v
+
+    def summary(self) -> RunSummary | None:
+        """The run summary the recording carries (property ``result``), or None."""
+        text = self.property_value("result", "json")
+        return RunSummary.from_json(text) if text else None
+
+    def layout(self) -> Layout | None:
+        """The layout facts of the final blueprint (property ``layout``), or None."""
+        text = self.property_value("layout", "json")
+        return Layout.from_json(text) if text else None
+
+    def _blueprint_values(self, component: str) -> list[Any]:
+        """Every value of one blueprint component (e.g. ``"TimeAxis:view_range"``) in the final blueprint."""
+        final = self._final_blueprint()
+        out: list[Any] = []
+        for c in self._reader.stream(store=final).to_chunks() if final is not None else []:
+            rb = c.to_record_batch()
+            if component in rb.schema.names:
+                out += [v[0] if isinstance(v, list) and v else v for v in rb.column(component).to_pylist()]
+        return out
+
+    def blueprint_time_ranges(self) -> list[tuple[float, float]]:
+        """(start, end) [s] of the time axes the final blueprint opens its plots on."""
+        return [(_boundary_s(r["start"]), _boundary_s(r["end"])) for r in self._blueprint_values("TimeAxis:view_range")
+                if isinstance(r, dict) and "start" in r and "end" in r]  # fmt: skip
+
+    def blueprint_value_ranges(self) -> list[tuple[float, float]]:
+        """(low, high) of the value axes the final blueprint fixes."""
+        return [(float(r[0]), float(r[1])) for r in self._blueprint_values("ScalarAxis:range") if r is not None]
+
+
+def _boundary_s(b: Any) -> float:
+    """A time range boundary as decoded from arrow (nanoseconds) -> seconds (NaN if not a time)."""
+    if isinstance(b, (int, float)) and not isinstance(b, bool):
+        return float(b) * 1e-9
+    if isinstance(b, dict):
+        for v in b.values():
+            got = _boundary_s(v)
+            if got == got:
+                return got
+    return float("nan")
 
 
 def list_entity_paths(path: Path | str) -> list[str]:

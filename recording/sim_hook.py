@@ -1,24 +1,26 @@
 """Record a lockstep :class:`~sitl.simulation.Simulation`'s truth through a :class:`RunRecorder`.
 
 :func:`record_simulation` appends a ``sim.step_hooks`` entry, called at every mode tick
-(``physics.mode_rate_hz``, 50 Hz by default) with the simulation, and logs at the
-recommended rates (each rounded to a whole number of mode ticks):
+(``physics.mode_rate_hz``, 50 Hz by default) with the simulation, and logs at these rates (each
+rounded to a whole number of mode ticks):
 
-    vehicle pose + trail, true wind arrow   vehicle_hz (25 Hz)
+    vehicle pose + path, true wind arrow    vehicle_hz (25 Hz)
     true wind per axis, speed, from-dir     series_hz (25 Hz)
     rotor speeds (truth, rad/s)             series_hz
     chemical reading (sim.chem.latest)      every new reading (the sensor's own rate)
-    plume slice at flight altitude          slice_hz (0.5 Hz)
-    puffs                                   puffs_hz (2 Hz)
-    flight mode / arming / crash changes    on change, as text at ``log/events``
+    plume at flight altitude (map, 3D)      slice_hz (0.5 Hz)
+    plume on the vertical plane along the   slice_hz
+      wind through the source (3D)
+    puff centres                            puffs_hz (0: off; the field above shows the plume)
+    flight mode, arming, crash              on change (phases, events log)
 
-and once, at attach time: the true sources and, when the plume has a domain box, the
-geofence. The plume hook is registered by ``Simulation.__init__`` before this one, so the
-chemical reading and plume state logged at a tick are those of that same tick.
+and once, at attach time: the true sources, the scene (start and sources, the take-off altitude)
+and the detection threshold. The plume hook is registered by ``Simulation.__init__`` before this
+one, so the chemical reading and plume state logged at a tick are those of that same tick.
 
 Estimator and strategy data are logged by their runners through the recorder's methods
-(``wind(est_ned=...)``, ``wind_speed_dir``, ``chem(threshold)``, ``sources(declared)``,
-``text``), on the same ``sim_time`` timeline.
+(``wind(est_ned=...)``, ``wind_speed_dir``, ``strategy_state``, ``declare``, ``summary``), on the
+same timeline (vehicle time = simulation time).
 """
 
 from __future__ import annotations
@@ -29,8 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from recording.rerun_log import RunRecorder
-from vehicle.frames import from_direction_deg
+from recording.recorder import RunRecorder
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
@@ -43,7 +44,8 @@ def wind_speed_from_deg(wind_ned: np.ndarray) -> tuple[float, float]:
     """Horizontal speed [m/s] and meteorological from-direction [deg, 0 = from north, 90 = from
     east, in [0, 360)] of an air-mass velocity [m/s, NED]."""
     n, e = float(wind_ned[0]), float(wind_ned[1])
-    return math.hypot(n, e), float(from_direction_deg(n, e))
+    # math, not vehicle.frames.from_direction_deg: the same formula without numpy's per-call cost
+    return math.hypot(n, e), math.degrees(math.atan2(-e, -n)) % 360.0
 
 
 def _every(mode_rate_hz: float, rate_hz: float) -> int:
@@ -56,12 +58,34 @@ def _every(mode_rate_hz: float, rate_hz: float) -> int:
 def _slice_bounds(sim: Simulation, margin_m: float) -> tuple[tuple[float, float], tuple[float, float]]:
     """North and east ranges [m] covering the plume sources and the start point, plus a margin."""
     pts = [np.asarray(sim.scenario.start.position_ned, dtype=float)[:2]]
-    plume = sim.plume
-    if plume is not None:
-        pts += [np.asarray(s.position_ned, dtype=float)[:2] for s in plume.config.sources]
+    if sim.chem is not None:
+        pts += [p[:2] for p in sim.chem.sources_ned]
     arr = np.array(pts)
     lo, hi = arr.min(axis=0) - margin_m, arr.max(axis=0) + margin_m
     return (float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1]))
+
+
+class _Curtain:
+    """The vertical plane along the mean wind through the (first) source: s from 10 m upwind to the
+    start's distance plus a margin, z from the ground up to three flight altitudes."""
+
+    def __init__(self, sim: Simulation, resolution_m: float, altitude_m: float) -> None:
+        src = sim.chem.sources_ned[0] if sim.chem is not None else np.zeros(3)
+        start = np.asarray(sim.scenario.start.position_ned, dtype=float)
+        reach = float(np.hypot(*(start[:2] - src[:2]))) + SLICE_MARGIN_M
+        self.origin = src[:2].copy()
+        self.s = np.arange(-10.0, reach + 1e-9, resolution_m)
+        self.z = -np.arange(0.0, max(3.0 * altitude_m, 12.0) + 1e-9, 0.5 * resolution_m)
+        self.src_z = float(src[2])
+
+    def points(self, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
+        """Downwind unit vector (north, east) of the mean wind at the source now, and the (S*Z, 3) points."""
+        w = sim.wind.mean(sim.t, np.array([self.origin[0], self.origin[1], self.src_z]))
+        h = float(np.hypot(w[0], w[1]))
+        d = np.array([w[0], w[1]]) / h if h > 1e-6 else np.array([-1.0, 0.0])
+        ss, zz = np.meshgrid(self.s, self.z, indexing="ij")
+        pts = np.column_stack([self.origin[0] + ss.ravel() * d[0], self.origin[1] + ss.ravel() * d[1], zz.ravel()])
+        return d, pts
 
 
 def record_simulation(
@@ -71,18 +95,18 @@ def record_simulation(
     vehicle_hz: float = 25.0,
     series_hz: float = 25.0,
     slice_hz: float = 0.5,
-    puffs_hz: float = 2.0,
+    puffs_hz: float = 0.0,
     slice_resolution_m: float = 2.0,
     slice_bounds_ned: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> Callable[[Simulation], None]:
     """Log ``sim``'s truth to ``recorder`` from now on (see the module docstring for rates).
 
     Args:
-        sim: the simulation (a ``[plume]`` scenario adds chemical readings, slice and puffs).
+        sim: the simulation (a ``[plume]`` scenario adds chemical readings and the plume).
         recorder: where to log.
         vehicle_hz, series_hz, slice_hz, puffs_hz: wanted rates [Hz]; 0 disables that part.
-        slice_resolution_m: grid spacing of the plume slice [m].
-        slice_bounds_ned: ((n_min, n_max), (e_min, e_max)) of the slice [m]; default: the
+        slice_resolution_m: grid spacing of the plume slices [m].
+        slice_bounds_ned: ((n_min, n_max), (e_min, e_max)) of the horizontal slice [m]; default: the
             sources and the start point with a ``SLICE_MARGIN_M`` margin.
 
     Returns the hook (already appended to ``sim.step_hooks``; remove it to stop recording).
@@ -92,21 +116,42 @@ def record_simulation(
     n_series = _every(mode_rate, series_hz)
     n_slice = _every(mode_rate, slice_hz)
     n_puffs = _every(mode_rate, puffs_hz)
-    plume = sim.plume
-    if plume is not None:
-        recorder.sources([s.position_ned for s in plume.config.sources])
-        if plume.config.domain_min_ned is not None and plume.config.domain_max_ned is not None:
-            recorder.geofence(plume.config.domain_min_ned, plume.config.domain_max_ned)
+    takeoff_z = -float(sim.scenario.route.takeoff_altitude_m)
+    start = np.asarray(sim.scenario.start.position_ned, dtype=float)
+    chem = sim.chem
+    sources = [] if chem is None else chem.sources_ned.tolist()
+    recorder.set_scene([start[:2], *(s[:2] for s in sources)], altitude_m=-takeoff_z)
+    if chem is not None:
+        recorder.sources(sources)
+        recorder.set_chem_threshold(chem.sensor.config.detection_limit_mg_m3)
     xr, yr = slice_bounds_ned or _slice_bounds(sim, SLICE_MARGIN_M)
     xs = np.linspace(xr[0], xr[1], max(2, round((xr[1] - xr[0]) / slice_resolution_m) + 1))
     ys = np.linspace(yr[0], yr[1], max(2, round((yr[1] - yr[0]) / slice_resolution_m) + 1))
     grid_xy = np.column_stack([g.ravel() for g in np.meshgrid(xs, ys, indexing="ij")])
-    takeoff_z = -float(sim.scenario.route.takeoff_altitude_m)
-    last: dict[str, object] = {"mode": None, "armed": None, "crashed": False, "chem_t": None}
+    curtain = _Curtain(sim, slice_resolution_m, -takeoff_z) if chem is not None else None
+    last: dict[str, object] = {"crashed": False, "chem_t": None, "mode": None, "armed": None}
+
+    # Mode ticks on which something is due (the sensor samples on its own multiple of the mode ticks).
+    n_chem = _every(mode_rate, chem.setup.sensor.sample_rate_hz) if chem is not None else 0
+    periods = [n for n in (n_vehicle, n_series, n_slice, n_puffs, n_chem) if n]
+    step = math.gcd(*periods) if periods else 1  # nothing is due on the ticks between its multiples
 
     def hook(s: Simulation) -> None:
-        k = s.tick // s.world.slow_div
         t = s.t
+        fc = s.fc
+        # Mode and arming first: the path points of this tick then carry the new phase.
+        if fc.mode is not last["mode"]:
+            last["mode"] = fc.mode
+            recorder.flight_mode(t, str(getattr(fc.mode, "value", fc.mode)))
+        if fc.armed is not last["armed"]:
+            last["armed"] = fc.armed
+            recorder.armed(t, bool(fc.armed))
+        if s.crashed and not last["crashed"]:
+            recorder.text(t, "crash: touchdown too fast", "ERROR")
+            last["crashed"] = True
+        k = s.tick // s.world.slow_div
+        if k % step:  # the hook runs at every mode tick: most have nothing due
+            return
         pos = s.x[0:3]
         wind: np.ndarray | None = None
         if n_vehicle and k % n_vehicle == 0:
@@ -127,25 +172,17 @@ def record_simulation(
         pl = s.plume
         if pl is not None:
             if n_slice and k % n_slice == 0:
-                # The slice is at the flight altitude: the vehicle's, or the take-off
-                # altitude while it is still on the ground.
+                # At the flight altitude: the vehicle's, or the take-off altitude while on the ground.
                 z = float(pos[2]) if pos[2] < -0.5 else takeoff_z
                 pts = np.column_stack([grid_xy, np.full(len(grid_xy), z)])
                 conc = np.asarray(pl.concentration(pts)).reshape(len(xs), len(ys))
                 recorder.plume_slice(t, xs, ys, conc, z)
-            puffs = s.chem.puff_array() if s.chem is not None else None
-            if n_puffs and k % n_puffs == 0 and puffs is not None:
+                if curtain is not None:
+                    d, cpts = curtain.points(s)
+                    cc = np.asarray(pl.concentration(cpts)).reshape(len(curtain.s), len(curtain.z))
+                    recorder.plume_curtain(t, curtain.origin, d, curtain.s, curtain.z, cc)
+            if n_puffs and k % n_puffs == 0 and s.chem is not None and (puffs := s.chem.puff_array()) is not None:
                 recorder.puffs(t, puffs)
-        fc = s.fc
-        if fc.mode != last["mode"]:
-            recorder.text(t, f"mode {getattr(fc.mode, 'name', fc.mode)}", "INFO")
-            last["mode"] = fc.mode
-        if fc.armed != last["armed"]:
-            recorder.text(t, "armed" if fc.armed else "disarmed", "INFO")
-            last["armed"] = fc.armed
-        if s.crashed and not last["crashed"]:
-            recorder.text(t, "crash: touchdown too fast", "ERROR")
-            last["crashed"] = True
 
     sim.step_hooks.append(hook)
     return hook

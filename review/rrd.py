@@ -1,8 +1,8 @@
-"""Write a review to a Rerun ``.rrd`` with the live runs' layout (``recording.rerun_log``):
+"""Write a review to a Rerun ``.rrd`` with the live runs' layout (``recording.recorder``):
 
     world/vehicle, world/trail            the flown path (whenever the log has positions)
     world/wind/{truth,estimate}           arrows at the vehicle (trusted estimate only)
-    wind/{north,east,down}/estimate       our trusted estimate, +- 2 sigma in .../lower, .../upper
+    wind/{north,east,down}/estimate       our trusted estimate, +- 2 sigma in .../band
     wind/{north,east,down}/truth          simulation truth (project SITL logs only)
     wind/{north,east,down}/autopilot      the autopilot's own estimate (PX4 WIND_COV / wind topic,
                                           ArduPilot WIND, XKF2/NKF2), for comparison
@@ -24,33 +24,17 @@ from pathlib import Path
 
 import numpy as np
 
-from recording.rerun_log import AXES, RunRecorder
+from recording.recorder import RunRecorder
 from recording.sim_hook import wind_speed_from_deg
+from recording.style import AXES
+from recording.summary import RunSummary
 from review.estimate import EstimatorTrack
 from review.flight import FlightData, Series
 
-C_AUTOPILOT = (44, 160, 44)
 UNTRUSTED = "untrusted_wind_m_s"
 
-
-class ReviewRecorder(RunRecorder):
-    """A :class:`RunRecorder` with one more series: the autopilot's own wind estimate."""
-
-    def _send_static(self) -> None:
-        super()._send_static()
-        for a in AXES:
-            self._style(f"wind/{a}/autopilot", "autopilot", C_AUTOPILOT, 1.5)
-        self._style("wind/speed/autopilot", "autopilot", C_AUTOPILOT, 1.5)
-
-    def __enter__(self) -> ReviewRecorder:
-        return self
-
-    def autopilot_wind(self, t: float, wind_ned: np.ndarray) -> None:
-        """The autopilot's wind estimate [m/s, NED air-mass velocity]; NaN components are gaps."""
-        for k, a in enumerate(AXES):
-            self._push(f"wind/{a}/autopilot", t, float(wind_ned[k]))
-        self._push("wind/speed/autopilot", t, math.hypot(float(wind_ned[0]), float(wind_ned[1])))
-        self._maybe_flush(t)
+#: The recorder of a review: the autopilot's own wind estimate is a RunRecorder series.
+ReviewRecorder = RunRecorder
 
 
 def decimate(t: np.ndarray, dt: float) -> np.ndarray:
@@ -122,7 +106,7 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | Non
             rec.text(t0, f"{int((~ok).sum())} estimate sample(s) not trusted (settling after take-off, or near the "
                      f"ground): at extra/{UNTRUSTED}, not in the wind plots", "INFO", channel="review")  # fmt: skip
         for t, text, level in fd.texts:
-            rec.text(t, text, level)
+            rec.autopilot_event(t, text, level)  # mode and arming changes also give the flight phases
         if len(fd.position):
             _pose(rec, fd, track, ok, dt)
         tw = fd.truth_wind
@@ -139,6 +123,12 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | Non
         rot = fd.rotors_display
         for i in decimate(rot.t, dt):
             rec.rotors(float(rot.t[i]), rot.v[i])
+        if len(fd.position):
+            rec.set_scene([fd.position.v[0][:2]])
+        rec.summary(RunSummary(kind=f"flight log review ({fd.kind} from {fd.autopilot}, {fd.duration_s:.1f} s)",
+                               scenario=fd.path.name, wind_source="our estimator re-run offline on the logged "
+                               "sensors" if track is not None and len(track.t) else "none: wind not estimated",
+                               missing=list(missing), extra={"inputs": used or "none"}))  # fmt: skip
 
 
 __all__ = ["ReviewRecorder", "decimate", "write_rrd"]

@@ -25,6 +25,7 @@ from link_support import free_port
 from mission.runners.inprocess import SUCCESS_RADIUS_M
 from mission.runners.mavsdk_runner import MissionConfig, MissionResult
 from sitl.scenario import load_scenario
+from wire import param_codec
 from wire.dialect import mavlink as mav
 from wire.proxy import Faults, LinkProxy
 from wire.proxy.framing import split_datagram
@@ -79,12 +80,14 @@ class Listener(threading.Thread):
         elif mtype == "STATUSTEXT" and m.get_srcSystem() == 1:
             self.texts.append((self.t, m.text))
         elif mtype == "PARAM_VALUE":
-            self.params[m.param_id] = m.param_value
+            self.params[m.param_id] = param_codec.decode(m.param_value, m.param_type)
 
-    def set_param(self, sitl_port: int, name: str, value: float) -> None:
-        """PARAM_SET straight to the SITL (not a HEARTBEAT: the listener still does not count as a link)."""
+    def set_param(self, sitl_port: int, name: str, value: float, param_type: int = param_codec.REAL32) -> None:
+        """PARAM_SET straight to the SITL (not a HEARTBEAT: the listener still does not count as a link);
+        ``param_type`` as the parameter's PX4 type (INT32 values travel bytewise)."""
         enc = mav.MAVLink(None, 250, 1)
-        frame = enc.param_set_encode(1, 1, name.encode(), value, mav.MAV_PARAM_TYPE_REAL32).pack(enc)
+        field = param_codec.encode(value, param_type)
+        frame = enc.param_set_encode(1, 1, name.encode(), field, param_type).pack(enc)
         end = time.monotonic() + 10.0
         while self.params.get(name) != pytest.approx(value):
             assert time.monotonic() < end, f"the SITL did not take {name} = {value}"

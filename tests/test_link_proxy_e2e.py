@@ -24,6 +24,7 @@ from link_proxy_rig import Rig, assert_faulted_both_ways, assert_found_and_lande
 
 from mission.runners.mavsdk_runner import run_mission
 from mission.safety import SafetyLimits
+from wire import param_codec
 from wire.dialect import mavlink as mav
 from wire.proxy import Faults
 
@@ -47,7 +48,8 @@ LOSS_SPEED = 2.0  # the offboard-loss timeout (1 s of vehicle time) is 0.5 s of 
 @pytest.mark.asyncio
 async def test_search_completes_at_30_percent_loss_each_way(rigs: Callable[..., Rig]) -> None:
     rig = rigs(LOSS, LOSS_SPEED, seed=2)
-    rig.listener.set_param(rig.port, "COM_DL_LOSS_T", 10.0 * LOSS_SPEED)  # 10 MAVSDK heartbeats (see above)
+    # 10 MAVSDK heartbeats (see above); COM_DL_LOSS_T is INT32 in PX4 (whole seconds)
+    rig.listener.set_param(rig.port, "COM_DL_LOSS_T", int(10 * LOSS_SPEED), param_codec.INT32)
     res = await asyncio.wait_for(run_mission(rig.config()), 200.0)
     print(res.to_dict())
     assert_found_and_landed(res)

@@ -1,8 +1,9 @@
 """The Rerun recorder: real .rrd files written and read back with ``rerun.chunk.RrdReader``.
 
-One 15 s open-field simulation is recorded through ``record_simulation`` (module fixture)
-and checked against the simulation itself; the recorder methods the estimator and the
-strategies use are checked with known values.
+One 15 s open-field simulation is recorded through ``record_simulation`` (module fixture) and
+checked against the simulation itself; the recorder's methods are checked with known values; the
+layout (blueprint) is read back from the file: its views, the time range its plots open on and
+the value ranges fitted to the data.
 """
 
 from __future__ import annotations
@@ -14,8 +15,9 @@ import numpy as np
 import pytest
 
 from recording.read import RrdLog
-from recording.rerun_log import RunRecorder, log_colormap
+from recording.recorder import MARKER_SPAN, RunRecorder
 from recording.sim_hook import record_simulation, wind_speed_from_deg
+from recording.style import TIMELINE, conc_image, log_colormap, posterior_image
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
 
@@ -32,146 +34,158 @@ def sim_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Simulation, RrdLo
     return sim, RrdLog(path)
 
 
-def test_sim_recording_has_expected_entities_on_sim_time(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_sim_recording_has_expected_entities_on_one_timeline(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, log = sim_run
     temporal = set(log.temporal_entity_paths())
     expected = {
-        "world/vehicle", "world/trail", "world/wind/truth", "world/plume/slice", "world/plume/puffs",
+        "world/vehicle", "world/trail", "world/wind/truth", "world/plume/curtain",
+        "map/vehicle", "map/path", "map/plume", "map/wind/truth", "phases/mission", "phases/mode",
         "wind/north/truth", "wind/east/truth", "wind/down/truth", "wind/speed/truth", "wind/direction/truth",
-        "rotors/1", "rotors/2", "rotors/3", "rotors/4", "chem/value", "log/events",
+        "rotors/1", "rotors/2", "rotors/3", "rotors/4", "chem/value", "chem/log10", "chem/threshold_log10",
+        "log/events",
     }  # fmt: skip
     assert expected <= temporal, expected - temporal
-    # Static: coordinate convention, vehicle geometry, true source.
-    assert {"world", "world/vehicle/body", "world/vehicle/axes", "world/sources/true"} <= set(log.entity_paths())
-    # No estimator ran: its entities carry a style only, no data.
-    assert "wind/north/estimate" not in temporal
-    # Wall-clock log_time is switched off: the simulation timeline only.
-    assert log.timelines() == {"sim_time"}
+    static = set(log.entity_paths())
+    assert {"world", "world/vehicle/body", "world/sources/true", "map/sources/true", "map/north", "map/scale",
+            "summary"} <= static  # fmt: skip
+    assert "wind/north/estimate" not in temporal  # no estimator ran: a style, no data
+    assert "world/plume/puffs" not in temporal  # off by default: the concentration field shows the plume
+    assert log.timelines() == {TIMELINE}  # one clock; wall-clock log_time is off
     assert log.application_ids == ["windseek"]
 
 
-def test_vehicle_pose_and_trail(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_vehicle_pose_and_path(sim_run: tuple[Simulation, RrdLog]) -> None:
     sim, log = sim_run
     t, pos = log.vectors("world/vehicle", "Transform3D:translation")
-    # 25 Hz from t = 0 over 15 s (the last hook call is at the last mode tick before 15 s).
-    assert len(t) == 375
+    assert len(t) == 375  # 25 Hz from t = 0 over 15 s
     np.testing.assert_allclose(np.diff(t), 0.04, atol=1e-9)
-    assert t[0] == 0.0 and t[-1] == pytest.approx(DURATION_S - 0.04)
-    # Starts on the ground, climbs to the route's 5 m (altitude = -z) without overshooting much.
     assert pos[0, 2] == pytest.approx(0.0, abs=0.05)
     assert -pos[-1, 2] == pytest.approx(5.0, abs=0.3)
-    assert -pos[:, 2].min() < 5.6
-    np.testing.assert_allclose(pos[-1], sim.position, atol=0.05)  # within one logging period of flight
+    np.testing.assert_allclose(pos[-1], sim.position, atol=0.05)
     _, quat = log.column("world/vehicle", "Transform3D:quaternion")
-    q = np.array([np.ravel(v) for v in quat])
-    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(np.array([np.ravel(v) for v in quat]), axis=1), 1.0, atol=1e-5)
     _, strips = log.column("world/trail", "LineStrips3D:strips")
-    last = np.array(strips[-1][0])
-    assert last.shape[1] == 3 and len(last) >= 10
-    assert -last[:, 2].min() > 4.0  # the trail reaches flight altitude
+    path = np.vstack([np.array(row[0]) for row in strips])  # one segment per row
+    assert path.shape[1] == 3 and -path[:, 2].max() < 0.5 and -path[:, 2].min() > 4.0  # ground to altitude
+    # The map is north up: map (x, y) = (east, -north), the same path.
+    t_m, m = log.vectors("map/vehicle", "Points2D:positions")
+    np.testing.assert_array_equal(t_m, t)
+    np.testing.assert_allclose(m, np.column_stack([pos[:, 1], -pos[:, 0]]), atol=1e-5)
 
 
-def test_rotor_speeds_in_range_when_flying(sim_run: tuple[Simulation, RrdLog]) -> None:
-    _, log = sim_run
-    t_pos, pos = log.vectors("world/vehicle", "Transform3D:translation")
-    flying = t_pos[-pos[:, 2] > 1.0]
-    assert len(flying) > 200
-    for i in range(1, 5):
-        t, w = log.scalars(f"rotors/{i}")
-        np.testing.assert_array_equal(t, t_pos)
-        w_fly = w[np.isin(t, flying)]
-        assert w_fly.min() >= 100.0 and w_fly.max() <= 600.0
-        # Hover is 393 rad/s; in 5 m/s wind the mean stays near it.
-        assert w_fly.mean() == pytest.approx(393.0, abs=30.0)
-
-
-def test_wind_truth_matches_the_wind_field(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_rotor_speeds_and_wind_truth(sim_run: tuple[Simulation, RrdLog]) -> None:
     sim, log = sim_run
+    t_pos, pos = log.vectors("world/vehicle", "Transform3D:translation")
+    flying = -pos[:, 2] > 1.0
+    t, w = log.scalars("rotors/1")
+    np.testing.assert_array_equal(t, t_pos)
+    assert w[flying].mean() == pytest.approx(393.0, abs=30.0)  # hover
     t, n = log.scalars("wind/north/truth")
     _, e = log.scalars("wind/east/truth")
     _, d = log.scalars("wind/down/truth")
-    t_pos, pos = log.vectors("world/vehicle", "Transform3D:translation")
-    np.testing.assert_array_equal(t, t_pos)
-    # The wind field is a deterministic function of (t, position): evaluate it again at the
-    # logged times and positions (float32 positions: tiny differences only).
     again = np.array([sim.wind.velocity(ti, p.astype(float)) for ti, p in zip(t, pos, strict=True)])
     np.testing.assert_allclose(np.column_stack([n, e, d]), again, atol=2e-3)
-    # Open field: 5 m/s from the north (air going south) with moderate turbulence.
-    assert n.mean() == pytest.approx(-5.0, abs=1.5)
-    assert abs(e.mean()) < 1.5
-    speed = np.hypot(n, e)
-    assert 3.5 < speed.mean() < 6.5
-    t_s, s = log.scalars("wind/speed/truth")
+    _, s = log.scalars("wind/speed/truth")
+    np.testing.assert_allclose(s, np.hypot(n, e), rtol=1e-6)
+    # From-direction unwrapped about the first value: wind from about north -> near 0, no 360 jumps.
     _, from_deg = log.scalars("wind/direction/truth")
-    np.testing.assert_allclose(s, speed, rtol=1e-9)
-    assert ((from_deg >= 0.0) & (from_deg < 360.0)).all()
-    circ_mean = math.degrees(math.atan2(np.sin(np.radians(from_deg)).mean(), np.cos(np.radians(from_deg)).mean()))
-    assert abs(circ_mean) < 25.0
-    _, arrows = log.column("world/wind/truth", "Arrows3D:vectors")
-    np.testing.assert_allclose(np.array([a[0] for a in arrows]), np.column_stack([n, e, d]), atol=1e-5)
+    assert np.abs(np.diff(from_deg)).max() < 90.0 and np.abs(from_deg).max() < 60.0
+    ref = from_deg[0]
+    wrapped = np.array([wind_speed_from_deg(np.array([a, b, 0.0]))[1] for a, b in zip(n, e, strict=True)])
+    np.testing.assert_allclose((from_deg - wrapped + 180.0) % 360.0 - 180.0, 0.0, atol=1e-3)
+    assert abs(from_deg - ref).max() <= 180.0
 
 
-def test_chem_readings_match_the_sensor(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_chem_readings_on_a_log_scale(sim_run: tuple[Simulation, RrdLog]) -> None:
     sim, log = sim_run
     t, c = log.scalars("chem/value")
     model = sim.chem
     assert len(c) == model.n_samples == 150  # every 10 Hz reading, none dropped or doubled
-    np.testing.assert_allclose(np.diff(t), 0.1, atol=1e-9)
-    assert (c >= 0.0).all()
     assert c.max() == pytest.approx(model.peak_mg_m3, rel=1e-9)
-    assert (c > 0).sum() == model.n_detected > 0  # 60 m downwind of the source: inside the plume
+    t_l, lg = log.scalars("chem/log10")
+    np.testing.assert_array_equal(t_l, t)
+    np.testing.assert_allclose(lg, np.log10(np.maximum(c, 1e-2)), rtol=1e-6)
+    t_th, th = log.scalars("chem/threshold_log10")
+    np.testing.assert_allclose(th, math.log10(0.05))  # the sensor's detection limit, drawn across the run
+    assert t_th[0] == 0.0 and t_th[-1] == pytest.approx(DURATION_S, abs=0.1)
+    # Every reading at or above the threshold is a hit on the map, at the vehicle (one row each).
+    t_h, _ = log.column("map/hits", "Points2D:positions")
+    assert len(t_h) == int((c >= 0.05).sum()) > 0
+    np.testing.assert_allclose(t_h, t[c >= 0.05])
 
 
-def test_plume_slice_and_puffs(sim_run: tuple[Simulation, RrdLog]) -> None:
-    sim, log = sim_run
-    t, slices = log.column("world/plume/slice", "Points3D:positions")
-    assert len(t) == 8  # 0.5 Hz over 15 s: t = 0, 2, ..., 14
-    t_pos, pos = log.vectors("world/vehicle", "Transform3D:translation")
-    for ti, pts in zip(t, slices, strict=True):
-        p = np.array(pts)
-        assert len(p) > 10
-        # Default bounds: source (60, 0) and start (0, 0) with a 30 m margin.
-        assert p[:, 0].min() >= -30.0 and p[:, 0].max() <= 90.0 and np.abs(p[:, 1]).max() <= 30.0
-        # At the vehicle's altitude, or the 5 m take-off altitude while still on the ground.
-        z_vehicle = pos[np.searchsorted(t_pos, ti), 2]
-        assert np.ptp(p[:, 2]) == 0.0
-        assert p[0, 2] == pytest.approx(z_vehicle if z_vehicle < -0.5 else -5.0, abs=1e-5)
-    _, colors = log.column("world/plume/slice", "Points3D:colors")
-    assert len(colors[-1]) == len(slices[-1])
-    t_p, puffs = log.column("world/plume/puffs", "Points3D:positions")
-    _, radii = log.column("world/plume/puffs", "Points3D:radii")
-    assert len(t_p) == 30
-    assert len(puffs[-1]) == sim.chem.n_puffs
-    assert min(radii[-1]) > 0.0
-    _, src = log.column("world/sources/true", "Points3D:positions")
-    np.testing.assert_allclose(src[0], [[60.0, 0.0, -2.0]])
-
-
-def test_mode_changes_logged_as_text(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_plume_slice_image_and_curtain(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, log = sim_run
-    _, texts = log.column("log/events", "TextLog:text")
-    flat = [x[0] for x in texts]
-    assert "mode MISSION" in flat and "armed" in flat
+    t, fmt = log.column("map/plume", "Image:format")
+    assert len(t) == 8  # 0.5 Hz over 15 s
+    assert fmt[-1][0]["width"] == 31 and fmt[-1][0]["height"] == 61  # 2 m cells, north up
+    # The grid's north-west corner, NED (n, e) = (90 + 1, -30 - 1) m, is map (x, y) = (e, -n); 2 m per pixel.
+    _, tr = log.vectors("map/plume", "Transform3D:translation")
+    np.testing.assert_allclose(tr[-1], [-31.0, -91.0, 0.0])
+    _, buf = log.column("map/plume", "Image:buffer")
+    alpha = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(61, 31, 4)[..., 3].astype(float)
+    assert (alpha > 0).sum() > 10  # the plume, transparent around it
+    east = -30.0 + 2.0 * np.arange(31)
+    assert abs((alpha.sum(axis=0) * east).sum() / alpha.sum()) < 10.0  # along the north-south axis of the wind
+    _, opacity = log.column("map/plume", "Image:opacity")
+    assert opacity[-1][0] < 1.0  # below 1 the viewer blends by the alpha channel (transparent edge)
+    _, curtain = log.column("world/plume/curtain", "Points3D:positions")
+    c = np.array(curtain[-1])
+    assert np.abs(c[:, 1]).max() < 5.0 and c[:, 2].min() < -3.0  # the plane along the wind, above ground
 
 
-def test_blueprint_layout(sim_run: tuple[Simulation, RrdLog]) -> None:
+def test_phases_and_events(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, log = sim_run
-    assert log.blueprint_count == 1
+    assert [s for _, s in log.states("phases/mission")][:1] == ["armed"]
+    assert "AUTO.MISSION" in [s for _, s in log.states("phases/mode")]
+    bodies = [b for _, b in log.texts("log/events")]
+    assert "armed" in bodies and "flight mode AUTO.MISSION" in bodies
+
+
+def test_blueprint_layout_and_ranges(sim_run: tuple[Simulation, RrdLog]) -> None:
+    _, log = sim_run
+    assert log.blueprint_count == 2  # a usable layout from the start, the final one at close
     views = {(cls, origin) for cls, origin, _ in log.blueprint_views()}
-    assert ("3D", "world") in views and ("TextLog", "log") in views
+    assert ("2D", "map") in views and ("3D", "world") in views
+    assert ("StateTimeline", "phases") in views and ("TextDocument", "summary") in views
+    assert ("TextLog", "log") in views
     for origin in ("wind/north", "wind/east", "wind/down", "wind/speed", "wind/direction", "chem", "rotors"):
-        assert ("TimeSeries", origin) in views
-    assert "time_panel" in log.blueprint_entity_paths()
+        assert ("TimeSeries", origin) in views, origin
+    # Every plot opens on the whole run, with room on the right for the legends.
+    ranges = log.blueprint_time_ranges()
+    assert len(ranges) == 8  # 7 plots and the phase lanes
+    for t0, t1 in ranges:
+        assert t0 == pytest.approx(0.0) and t1 == pytest.approx(14.98 + 0.2 * 14.98, abs=0.05)
+    lay = log.layout()
+    assert lay is not None and lay.t_range == pytest.approx((0.0, 14.96), abs=0.03)
+    # Value axes fitted to the data: the rotor plot to the flight, not to the rotors at rest.
+    lo, hi = lay.y_ranges["rotors"]
+    assert 300.0 < lo < 393.0 < hi < 500.0
+    # The map frames the search area (start and source with a margin), not the plume's extent.
+    n0, n1, e0, e1 = lay.bounds_ne
+    assert -20.0 < n0 < 0.0 and 60.0 < n1 < 80.0 and (e1 - e0) <= 1.5 * (n1 - n0)
+
+
+def test_colormaps_are_light_at_the_low_end() -> None:
+    rgb = log_colormap(np.array([0.0, 1e-2, 1.0, 100.0, 1e4]), 1e-2, 1e2)
+    assert (rgb[0] == rgb[1]).all() and (rgb[-1] == rgb[-2]).all()  # clipped
+    assert rgb[1].astype(int).sum() > 600 and rgb[3].astype(int).sum() < 250  # light yellow .. dark red
+    img = conc_image(np.array([[0.0, 0.05], [1.0, 100.0]]), 1e-2, 1e2)  # rows: north 0, north 1
+    assert img.shape == (2, 2, 4)
+    assert img[1, 0, 3] == 0  # no plume: transparent (row 1 = the southern row)
+    assert 0 < img[1, 1, 3] < img[0, 0, 3] < img[0, 1, 3]  # opacity rises with concentration
+    p = posterior_image(np.array([[0.0, 0.25], [1.0, 0.0]]))  # grid rows: north 0, north 1
+    assert p[0, 1, 3] == p[1, 0, 3] == 0 and 0 < p[1, 1, 3] < p[0, 0, 3]  # image row 0 = the northern row
 
 
 def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     path_a, path_b = tmp_path / "a.rrd", tmp_path / "b.rrd"
-    # Two recorders at once, in one process: separate streams, separate files and ids.
     with RunRecorder(path_a, strategy="zigzag", series_flush_s=0.3) as a, RunRecorder(path_b, blueprint=False) as b:
         for k in range(20):
             t = 0.1 * k
+            a.vehicle(t, [0.5 * k, 0.0, -5.0], [1.0, 0.0, 0.0, 0.0])
             a.wind(t, truth_ned=[-5.0, 0.0, 0.0], est_ned=[-4.0, 1.0, 0.5], sigma_ned=[0.5, 0.25, 0.1])
-            a.wind_speed_dir(t, 5.0, -10.0 if k else math.nan, dir_filt_deg=370.0)
+            a.wind_speed_dir(t, 5.0, 350.0 + k if k else math.nan, dir_filt_deg=370.0)
             a.chem(t, 0.2 * k, 1.0)
             b.rotors(t, [400.0 + k, 401.0, 402.0, 403.0])
         a.sources([[10.0, 0.0, -1.0]], declared_ned=[9.0, 1.0, -1.0], confidence=0.9)
@@ -180,48 +194,90 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
         with pytest.raises(ValueError, match="level"):
             a.text(1.0, "x", "LOUD")
     la, lb = RrdLog(path_a), RrdLog(path_b)
-    t, lo = la.scalars("wind/north/lower")
-    _, hi = la.scalars("wind/north/upper")
-    assert len(t) == 20 and t[-1] == pytest.approx(1.9)  # rows from all flushes, in order
-    np.testing.assert_allclose(lo, -5.0)  # -4 - 2 * 0.5
-    np.testing.assert_allclose(hi, -3.0)
-    np.testing.assert_allclose(la.scalars("wind/east/upper")[1], 1.5)
+    t, band = la.scalars("wind/north/band")
+    assert band.shape == (20, 2) and t[-1] == pytest.approx(1.9)  # one entity, two edges per row
+    np.testing.assert_allclose(band, [[-5.0, -3.0]] * 20)  # -4 -+ 2 * 0.5
+    np.testing.assert_allclose(la.scalars("wind/east/band")[1], [[0.5, 1.5]] * 20)
     _, raw = la.scalars("wind/direction/raw")
     assert len(raw) == 19  # the NaN sample is a gap, not a point
-    np.testing.assert_allclose(raw, 350.0)  # wrapped to [0, 360)
+    # Unwrapped about the first value (the filtered 370 = 10 deg): 351 .. 9 deg as -9 .. 9, no jump at 0.
+    np.testing.assert_allclose(raw, np.arange(-9.0, 10.0))
     np.testing.assert_allclose(la.scalars("wind/direction/filtered")[1], 10.0)
     np.testing.assert_allclose(la.scalars("chem/value")[1], 0.2 * np.arange(20))
-    t_dec, lab = la.column("world/sources/declared", "Points3D:labels")
-    assert lab == [["declared (90%)"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
+    _, hits = la.column("map/hits", "Points2D:positions")
+    assert len(hits) == 15  # readings 1.0 .. 3.8 mg/m^3 at or above the threshold, at the vehicle
+    np.testing.assert_allclose([h[0] for h in hits], [[0.0, -0.5 * k] for k in range(5, 20)])
+    _, colors = la.column("map/hits", "Points2D:colors")
+    assert len({tuple(c) for c in colors}) > 1  # coloured by concentration
+    t_dec, lab = la.column("map/sources/declared/label", "Points2D:labels")
+    assert lab == [["declared 90%"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
+    assert la.texts("log/strategy") == [(pytest.approx(1.0), "surge")]
     _, lvl = la.column("log/strategy", "TextLog:level")
     assert lvl == [["WARN"]]
-    assert "world/geofence" in la.entity_paths()
+    assert "map/geofence" in la.entity_paths() and "world/geofence" in la.entity_paths()
     np.testing.assert_allclose(lb.scalars("rotors/1")[1], 400.0 + np.arange(20))
-    assert "rotors/1" not in la.temporal_entity_paths() and "wind/north/lower" not in lb.temporal_entity_paths()
-    assert lb.blueprint_count == 0 and la.blueprint_count == 1
+    assert lb.blueprint_count == 0 and la.blueprint_count == 2
+    # What had no data says so: the layout shows a text instead of an empty plot.
+    assert "no rotor speeds" in (la.document("missing/rotors") or "")
+    assert ("TextDocument", "missing/rotors") in {(c, o) for c, o, _ in la.blueprint_views()}
+    assert "rotors" not in {o for c, o, _ in la.blueprint_views() if c == "TimeSeries"}
 
 
-def test_wind_from_direction_and_colormap() -> None:
-    assert wind_speed_from_deg(np.array([-5.0, 0.0, 0.0])) == pytest.approx((5.0, 0.0))  # from north
-    assert wind_speed_from_deg(np.array([0.0, -3.0, 1.0]))[1] == pytest.approx(90.0)  # from east
-    assert wind_speed_from_deg(np.array([0.0, 3.0, 0.0]))[1] == pytest.approx(270.0)
-    rgb = log_colormap(np.array([0.0, 1e-2, 1e-1, 1.0, 10.0, 100.0, 1e4]), 1e-2, 1e2)
-    # Log scale: each decade is one quarter of the map; clipped at both ends.
-    assert (rgb[0] == rgb[1]).all() and (rgb[-1] == rgb[-2]).all()
-    np.testing.assert_array_equal(rgb[1], [68, 1, 84])
-    np.testing.assert_array_equal(rgb[3], [33, 145, 140])
-    np.testing.assert_array_equal(rgb[5], [253, 231, 37])
-
-
-def test_trail_is_thinned_but_keeps_start_and_end(tmp_path: Path) -> None:
-    path = tmp_path / "trail.rrd"
-    with RunRecorder(path, trail_max_points=10, trail_every_s=0.0) as rec:
+def test_path_segments_join_and_carry_the_state_colour(tmp_path: Path) -> None:
+    path = tmp_path / "path.rrd"
+    with RunRecorder(path, strategy="surge-cast") as rec:
         for k in range(50):
+            if k == 20:  # before: on the ground, the path is grey
+                rec.armed(2.0, True)
+                rec.flight_mode(2.0, "OFFBOARD")
+                rec.strategy_state(2.0, "surge")
             rec.vehicle(0.1 * k, [float(k), 0.0, -5.0], [1.0, 0.0, 0.0, 0.0])
-    t, strips = RrdLog(path).column("world/trail", "LineStrips3D:strips")
-    last = np.array(strips[-1][0])
-    assert len(last) <= 11
-    np.testing.assert_allclose(last[0], [0.0, 0.0, -5.0])
-    np.testing.assert_allclose(last[-1], [49.0, 0.0, -5.0])
-    assert (np.diff(last[:, 0]) > 0).all()  # still in flight order
-    assert t[-1] == pytest.approx(4.9)
+    log = RrdLog(path)
+    t, strips = log.column("map/path", "LineStrips2D:strips")
+    segs = np.array([row[0] for row in strips])  # (N, 2 points, map x/y)
+    assert len(segs) == 49 and (np.diff(t) > 0).all()
+    np.testing.assert_allclose(segs[1:, 0], segs[:-1, 1])  # each segment starts where the last ended
+    np.testing.assert_allclose(segs[0, 0], [0.0, 0.0]) and np.testing.assert_allclose(segs[-1, 1], [0.0, -49.0])
+    _, colors = log.column("map/path", "LineStrips2D:colors")
+    from recording.style import state_color
+
+    def rgb(c: int) -> tuple[int, int, int]:  # rerun packs colours as 0xRRGGBBAA
+        return (c >> 24) & 255, (c >> 16) & 255, (c >> 8) & 255
+
+    assert rgb(colors[0][0]) == state_color("ground") and rgb(colors[-1][0]) == state_color("surge")
+    lay = log.layout()
+    assert lay is not None and lay.bounds_ne[1] > 49.0  # the map's extent covers the path
+
+
+def test_marker_lines_are_vertical_and_separated(tmp_path: Path) -> None:
+    path = tmp_path / "m.rrd"
+    with RunRecorder(path, strategy="surge-cast") as rec:
+        for k in range(200):
+            t = 0.1 * k
+            rec.vehicle(t, [0.1 * k, 0.0, -3.0], [1.0, 0.0, 0.0, 0.0])
+            rec.rotors(t, [390.0] * 4)
+        rec.armed(1.0, True)
+        rec.flight_mode(1.0, "AUTO.TAKEOFF")
+        rec.flight_mode(4.0, "OFFBOARD")
+        rec.strategy_state(4.0, "acquire")
+        rec.strategy_state(8.0, "verify")
+        rec.strategy_state(11.0, "surge")
+        rec.strategy_state(12.0, "verify")
+        rec.declare(15.0, [2.0, 0.0, -1.5], 0.8)
+        rec.flight_mode(17.0, "AUTO.LAND")
+        rec.armed(19.5, False)
+    log = RrdLog(path)
+    t, v = log.scalars("markers/phase")
+    np.testing.assert_allclose(t, np.repeat([1.0, 4.0, 17.0, 19.5], 3))  # take-off, search, landing, landed
+    np.testing.assert_array_equal(v[0::3], -MARKER_SPAN)
+    np.testing.assert_array_equal(v[1::3], MARKER_SPAN)
+    assert np.isnan(v[2::3]).all()  # NaN breaks the line between two markers
+    np.testing.assert_allclose(log.scalars("markers/verify")[0][0::3], [8.0, 12.0])
+    np.testing.assert_allclose(log.scalars("markers/declared")[0][0::3], [15.0])
+    assert [s for _, s in log.states("phases/mission")] == ["armed", "take-off", "search", "verify", "search",
+                                                             "verify", "descend", "landing", "landed"]  # fmt: skip
+    s = log.summary()
+    assert s is not None and s.t_arm_s == 1.0 and s.t_search_s == 4.0 and s.t_declared_s == 15.0
+    assert [v["t_start_s"] for v in s.verifications] == [8.0, 12.0]
+    lay = log.layout()
+    assert lay is not None and lay.markers and lay.t_range == pytest.approx((0.0, 19.9))

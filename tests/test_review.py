@@ -199,7 +199,7 @@ def test_project_tlog_to_rrd(tlogs: dict[str, Path], capsys: pytest.CaptureFixtu
 
     log = RrdLog(out)
     paths = log.entity_paths()
-    for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/truth", "wind/east/upper",
+    for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/truth", "wind/east/band",
               "chem/value", "rotors/1", "log/events", "log/review"):  # fmt: skip
         assert e in paths, (e, paths)
     assert log.blueprint_count >= 1

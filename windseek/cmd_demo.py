@@ -64,6 +64,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wall-limit", type=float, default=300.0, metavar="S",
                    help="give up after this many wall seconds (default 300)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    p.add_argument("--no-rrd", action="store_true",
+                   help="write no Rerun recording (the .tlog and .json are still written)")
     p.set_defaults(func=run)
 
 
@@ -108,7 +110,8 @@ def _plan(args: argparse.Namespace) -> _Plan:
         seed=sc.seed if args.seed is None else int(args.seed),
         speed=float(args.speed), time_limit=limits.time_limit_s if args.time_limit is None else float(args.time_limit),
         imu_average=int(args.imu_average), wall_limit=float(args.wall_limit), base=base,
-        files={k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json")}, truth_path=Path(f"{base}.truth.json"),
+        files={k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json") if not (k == "rrd" and args.no_rrd)},
+        truth_path=Path(f"{base}.truth.json"),
         fence=",".join(f"{v:g}" for v in (*limits.box_min_ned, *limits.box_max_ned)),
     )  # fmt: skip
 
@@ -139,11 +142,11 @@ class _Demo:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
         pl, obs = self.plan, self.obs
+        rrd_args = ["--rrd", str(pl.files["rrd"]), "--rrd-strategy", pl.strategy] if "rrd" in pl.files else []
         sitl = self._start("sitl", ["sitl", pl.scenario, "--speed", f"{pl.speed:g}", "--seed", str(pl.seed),
                                     "--udp-bind", "127.0.0.1:0", "--udp", f"127.0.0.1:{self.p_est}",
                                     f"127.0.0.1:{self.p_mis}", f"127.0.0.1:{obs.port}", "--forward",
-                                    "--tlog", str(pl.files["tlog"]), "--rrd", str(pl.files["rrd"]),
-                                    "--rrd-strategy", pl.strategy, f"--geofence={pl.fence}",
+                                    "--tlog", str(pl.files["tlog"]), *rrd_args, f"--geofence={pl.fence}",
                                     "--exit-summary", str(pl.truth_path)])  # fmt: skip
         est = self._start("estimator", ["estimator", "--connect", f"udpin://127.0.0.1:{self.p_est}",
                                         "--imu-average", str(pl.imu_average), "--progress-every", "5",
@@ -238,6 +241,13 @@ def run(args: argparse.Namespace) -> int:
     summary = make_summary(plan.name, plan.strategy, plan.seed, plan.speed, mission, truth,
                            time.monotonic() - demo.wall0, plan.files)  # fmt: skip
     plan.files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    if "rrd" in plan.files:
+        try:  # the recording carries the same summary as the one printed (and the .json)
+            from recording.finalize import add_demo_result
+
+            add_demo_result(plan.files["rrd"], summary)
+        except (OSError, RuntimeError, ValueError) as e:
+            demo.note(f"  recording: the summary could not be added to {plan.files['rrd']}: {e}")
     with contextlib.suppress(OSError):
         plan.truth_path.unlink()
     print_summary(summary, demo.note)
@@ -314,6 +324,7 @@ def print_summary(s: dict[str, Any], note: Any) -> None:
     note(f"  wind RMSE vs truth N {f(rm[0], '.2f')} E {f(rm[1], '.2f')} D {f(rm[2], '.2f')} m/s "
          f"(horizontal {f(s['wind_rmse_horizontal_m_s'], '.2f')} m/s, {s['wind_estimates_scored']} WIND_COV "
          "while airborne)")
-    note(f"  recording          {s['files']['rrd']}   (view: rerun {s['files']['rrd']})")
+    if "rrd" in s["files"]:
+        note(f"  recording          {s['files']['rrd']}   (view: rerun {s['files']['rrd']})")
     note(f"  telemetry log      {s['files']['tlog']}")
     note(f"  summary            {s['files']['json']}")

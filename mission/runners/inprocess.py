@@ -22,6 +22,7 @@ import asyncio
 import math
 import time
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -120,6 +121,7 @@ def run_trial(
     geofence_m: float = 250.0,
     keep_track: bool = False,
     imu_decimation: int = IMU_DECIMATION,
+    recorder: Any = None,
 ) -> TrialResult:
     """Fly one seeded search trial in lockstep and score it.
 
@@ -134,6 +136,8 @@ def run_trial(
         keep_track: record the position once per second in ``TrialResult.track``.
         imu_decimation: ``estimated`` mode: IMU samples averaged per estimator step (see
             ``IMU_DECIMATION``).
+        recorder: a :class:`recording.trial.TrialRecorder` (or anything with ``attach(sim, vehicle,
+            strategy, params)`` and ``finish(result)``): records the trial to a ``.rrd``.
     """
     wall0 = time.perf_counter()
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
@@ -147,6 +151,8 @@ def run_trial(
     limit = sc.duration_s if time_limit_s is None else float(time_limit_s)
     limits = SafetyLimits(box_min_ned=(-geofence_m, -geofence_m, -500.0), box_max_ned=(geofence_m, geofence_m, 0.0),
                           min_altitude_m=0.5, max_altitude_m=500.0, time_limit_s=limit)  # fmt: skip
+    if recorder is not None:
+        recorder.attach(sim, vehicle, strat, p)
     src = np.asarray(sim.chem.sources_ned[0] if sim.chem is not None else np.zeros(3), dtype=float)
     score = _Scorer(sim, src, p.rate_hz, keep_track)
     vehicle.tick_hooks.append(score.every_tick)
@@ -168,7 +174,7 @@ def run_trial(
         err, success, path = math.nan, False, score.path
         cause = cause or "timeout"
     t_declared = loop.t_declared
-    return TrialResult(
+    result = TrialResult(
         scenario=sc.name, strategy=strategy, wind=wind, seed=seed, success=success,
         declared_ned=res.declared_ned, confidence=res.confidence, error_m=err, time_s=t_declared, path_m=path,
         start_distance_m=start_dist, cause=cause, end_state=res.state,
@@ -177,6 +183,9 @@ def run_trial(
         reach_path_m=score.reach_path,
         verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
     )
+    if recorder is not None:
+        recorder.finish(result)
+    return result
 
 
 class _Scorer:

@@ -1,0 +1,253 @@
+"""The recorder's plumbing: one ``rr.RecordingStream`` per run, the time line and buffered columns.
+
+:class:`RecorderBase` owns the stream and nothing about what is drawn. High-rate rows (scalar
+series, the vehicle pose, wind arrows) are buffered in Python lists and sent as columns
+(``send_columns``) every ``series_flush_s`` of vehicle time: a buffered row costs a few
+microseconds where a ``log`` call costs 30-100 us. It also keeps the values of the scalar series
+it sent (decimated beyond ``VALUES_KEEP`` per series), so the layout can fit each plot's axis to
+the data when the recording closes. :class:`CpuMeter` lets a caller say what recording cost it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from recording.style import TIMELINE
+
+#: Scalar values kept per series for fitting the plot ranges (thinned by 2 beyond this).
+VALUES_KEEP = 20000
+
+
+class ColumnBuffer:
+    """Rows of one entity waiting to be sent as columns: times [s] and per-field values.
+
+    ``width`` > 1 means every row holds that many instances (e.g. the lower and upper edge of a
+    band); the columns are then partitioned so each row stays one batch of ``width`` values.
+    """
+
+    __slots__ = ("archetype", "fields", "t", "width")
+
+    def __init__(self, archetype: Any, width: int = 1) -> None:
+        self.archetype = archetype
+        self.width = width
+        self.t: list[float] = []
+        self.fields: dict[str, list[Any]] = {}
+
+    def clear(self) -> None:
+        self.t.clear()
+        for v in self.fields.values():
+            v.clear()
+
+
+class SeriesValues:
+    """The (t, value) pairs of one scalar series sent so far, for fitting plot ranges."""
+
+    __slots__ = ("t", "v")
+
+    def __init__(self) -> None:
+        self.t = np.zeros(0)
+        self.v = np.zeros(0)
+
+    def add(self, t: np.ndarray, v: np.ndarray) -> None:
+        self.t = np.concatenate([self.t, t])
+        self.v = np.concatenate([self.v, v])
+        if len(self.t) > VALUES_KEEP:
+            self.t, self.v = self.t[::2], self.v[::2]
+
+
+def _task_ids() -> set[str]:
+    """Thread ids of this process (Linux /proc; empty elsewhere)."""
+    try:
+        return set(os.listdir("/proc/self/task"))
+    except OSError:
+        return set()
+
+
+def _task_cpu_s(tid: str) -> float:
+    try:
+        with open(f"/proc/self/task/{tid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+class CpuMeter:
+    """CPU time a caller spends recording: ``meter(fn, *args)`` runs ``fn`` and adds the calling
+    thread's CPU time it took (``time.thread_time``, about a microsecond per call). Calls are not
+    nested; :meth:`report` counts a call in progress up to that moment (a recorder's ``close``
+    reports its cost from inside, before the stream closes)."""
+
+    def __init__(self) -> None:
+        self.cpu_s = 0.0
+        self.p0 = time.process_time()
+        self._t_call: float | None = None  # thread_time at the start of the call in progress
+
+    def __call__(self, fn: Callable[..., Any], *args: Any) -> Any:
+        t0 = self._t_call = time.thread_time()
+        try:
+            return fn(*args)
+        finally:
+            self._t_call = None
+            self.cpu_s += time.thread_time() - t0
+
+    def report(self, rec: RecorderBase) -> dict[str, float]:
+        """The recording's cost: the caller's part, rerun's threads, and the whole process since the
+        meter started [CPU s] (for the ``recording_cost`` property; ``benchmarks/recording_cost.py``)."""
+        cpu = self.cpu_s + (time.thread_time() - self._t_call if self._t_call is not None else 0.0)
+        return {"recorder_cpu_s": round(cpu, 4), "rerun_cpu_s": round(rec.rerun_cpu_s(), 4),
+                "process_cpu_s": round(time.process_time() - self.p0, 4)}  # fmt: skip
+
+
+class RecorderBase:
+    """A Rerun recording stream saved to ``path`` with its own recording id, and the buffers.
+
+    Args:
+        path: output ``.rrd`` file (parent folders are created).
+        application_id: Rerun application id (the viewer keys its layouts by it).
+        series_flush_s: vehicle seconds between two sends of the buffered rows (a live viewer lags
+            by that much).
+        recording_id: reuse an id (rewriting a finished recording); default: a fresh one.
+
+    Not thread-safe: one stream with its own current time; use it from one thread or one asyncio loop.
+    """
+
+    def __init__(self, path: Path | str, application_id: str = "windseek", *, series_flush_s: float = 0.5,
+                 recording_id: str | None = None) -> None:  # fmt: skip
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.series_flush_s = float(series_flush_s)
+        # A fresh id per instance: the default id is shared process-wide, which would merge two
+        # recorders (or two test runs) into one recording.
+        before = _task_ids()
+        self.rec = rr.RecordingStream(application_id, recording_id=recording_id or uuid.uuid4())
+        # Wall-clock "log_time" means nothing for a lockstep simulation and costs per call.
+        self.rec.set_log_time_enabled(False)
+        self.rec.save(self.path)
+        self._rerun_tids = _task_ids() - before  # rerun's own threads (encoding, writing)
+        self.closed = False
+        self.t_first = math.inf
+        self.t_last = -math.inf
+        self._series: dict[str, ColumnBuffer] = {}
+        self._values: dict[str, SeriesValues] = {}
+        self._t_flush = -math.inf
+
+    # ------------------------------------------------------------------ time
+    def _seen(self, t: float) -> None:
+        if t < self.t_first:
+            self.t_first = t
+        if t > self.t_last:
+            self.t_last = t
+
+    def _time(self, t: float) -> None:
+        """Set the stream's time for the next ``log`` calls (vehicle seconds)."""
+        t = float(t)
+        self._seen(t)
+        self.rec.set_time(TIMELINE, duration=t)
+
+    @property
+    def t_latest(self) -> float:
+        """The latest time logged so far [s] (0 before any)."""
+        return self.t_last if math.isfinite(self.t_last) else 0.0
+
+    def log_at(self, t: float, entity: str, *data: Any) -> None:
+        """``log`` one or more archetypes at vehicle time ``t`` [s]."""
+        self._time(t)
+        self.rec.log(entity, *data)
+
+    def log_static(self, entity: str, *data: Any) -> None:
+        self.rec.log(entity, *data, static=True)
+
+    # ------------------------------------------------------------------ buffered rows
+    def _push(self, entity: str, t: float, value: float | None) -> None:
+        """Buffer one scalar (skipped when None or not finite: a gap, not a zero)."""
+        if value is None:
+            return
+        v = float(value)
+        if not math.isfinite(v):
+            return
+        # The hot path (tens of thousands of rows per run): no keyword dictionary, no archetype lookup.
+        buf = self._series.get(entity)
+        if buf is None:
+            buf = self._series[entity] = ColumnBuffer(rr.Scalars)
+            buf.fields["scalars"] = []
+        t = float(t)
+        if t > self.t_last:
+            self.t_last = t
+        if t < self.t_first:
+            self.t_first = t
+        buf.t.append(t)
+        buf.fields["scalars"].append(v)
+
+    def _push_row(self, entity: str, archetype: Any, t: float, width: int = 1, **fields: Any) -> None:
+        """Buffer one temporal row of ``archetype`` (``width`` instances per row) for :meth:`flush_series`."""
+        t = float(t)
+        self._seen(t)
+        buf = self._series.get(entity)
+        if buf is None:
+            buf = self._series[entity] = ColumnBuffer(archetype, width)
+        buf.t.append(t)
+        for name, value in fields.items():
+            buf.fields.setdefault(name, []).append(value)
+
+    def _maybe_flush(self, t: float) -> None:
+        if t - self._t_flush >= self.series_flush_s:
+            self.flush_series()
+            self._t_flush = t
+
+    def flush_series(self) -> None:
+        """Send the buffered rows now (done automatically every ``series_flush_s`` of vehicle time):
+        one ``send_columns`` per entity for all its rows since the last flush."""
+        for entity, buf in self._series.items():
+            if not buf.t:
+                continue
+            t = np.asarray(buf.t)
+            cols = {name: np.asarray(v, dtype=np.uint8 if name == "colors" else float)  # colours: 0-255, not 0-1
+                    for name, v in buf.fields.items()}  # fmt: skip
+            if buf.width == 1:
+                columns = buf.archetype.columns(**cols)
+                if buf.archetype is rr.Scalars:
+                    self._values.setdefault(entity, SeriesValues()).add(t, cols["scalars"])
+            else:
+                flat = {name: v.reshape(-1, *v.shape[2:]) for name, v in cols.items()}
+                columns = buf.archetype.columns(**flat).partition([buf.width] * len(t))
+            self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=columns)
+            buf.clear()
+
+    def values(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
+        """The (t [s], value) pairs of a scalar series sent so far (thinned beyond ``VALUES_KEEP``)."""
+        s = self._values.get(entity)
+        return (s.t, s.v) if s is not None else (np.zeros(0), np.zeros(0))
+
+    def has_series(self, entity: str) -> bool:
+        """Whether any row of this entity was sent or is buffered."""
+        return entity in self._series
+
+    def rerun_cpu_s(self) -> float:
+        """CPU seconds rerun's threads of this recording used so far (0 where /proc is missing)."""
+        return sum(_task_cpu_s(t) for t in self._rerun_tids)
+
+    # ------------------------------------------------------------------ properties and end
+    def property(self, name: str, **values: Any) -> None:
+        """A recording property (shown in the viewer's recording panel); None values are left out."""
+        kept = {k: v for k, v in values.items() if v is not None}
+        if kept:
+            self.rec.send_property(name, rr.AnyValues(**kept))
+
+    def _close_stream(self) -> None:
+        self.flush_series()
+        self.rec.flush()
+        self.rec.disconnect()
+        self.closed = True
+
+
+__all__ = ["VALUES_KEEP", "ColumnBuffer", "CpuMeter", "RecorderBase", "SeriesValues"]
