@@ -1,7 +1,8 @@
 """With PX4 (``WINDSEEK_PX4_BIN``; skipped without it): ``windseek mission`` against PX4's own SIH physics
 (airframe 10040, no windseek world): the runner finds the autopilot, enables PX4's data-link-loss failsafe
-(``NAV_DLL_ACT``, INT32) and reads it back, flies, and ends landed and disarmed (SIH has no chemical
-sensor: the search cannot declare a source)."""
+(``NAV_DLL_ACT``, INT32) and reads it back, runs its estimator on PX4's actuator outputs (SIH has no ESC
+telemetry), flies, and ends landed and disarmed (SIH has no chemical sensor: the search cannot declare a
+source)."""
 
 from __future__ import annotations
 
@@ -63,4 +64,10 @@ def test_mission_runner_against_px4_sih_enables_the_datalink_failsafe_and_lands(
     res = json.loads(r.stdout.strip().splitlines()[-1])
     assert res["landed"] and res["disarmed"], res
     assert res["cause"] != "declared"  # no plume in SIH
-    print(json.dumps({k: res.get(k) for k in ("cause", "reasons", "wind_source", "time_s", "path_m")}))
+    est = res["estimator"]
+    # SIH sends no ESC telemetry: the filter ran on PX4's actuator outputs through the motor model
+    assert est["inputs"]["rotors"] in ("SERVO_OUTPUT_RAW", "ACTUATOR_OUTPUT_STATUS"), est
+    assert est["accepted"].get("imu", 0) > 100 and "no ESC telemetry" in est["inputs_line"], est
+    # PX4's HOME_POSITION carries no boot time: it must not look like a reboot
+    assert not est.get("link_clock_resets"), est
+    print(json.dumps({k: res.get(k) for k in ("cause", "reasons", "wind_source", "time_s", "path_m", "estimator")}))

@@ -198,7 +198,8 @@ class MavsdkVehicle:
         self._last_rx = time.monotonic()
         t = f["time_usec"] * 1e-6 if "time_usec" in f else f["time_boot_ms"] * 1e-3 if "time_boot_ms" in f else math.nan
         st = self.state
-        if math.isfinite(t) and name != "WIND_COV":
+        # The vehicle clock: boot time only (time_usec may be UNIX time, e.g. PX4's HOME_POSITION), 0 = unknown.
+        if "time_boot_ms" in f and t > 0.0:
             if t < st.t - CLOCK_RESET_S:
                 self.counters["clock_resets"] += 1
                 self.say(f"mission: the vehicle clock went back from {st.t:.1f} s to {t:.1f} s (reboot?)")
