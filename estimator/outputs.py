@@ -95,7 +95,7 @@ class EstimatorOutputs:
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         cfg = self.config
         R = self._R
-        return wind_moments(  # type: ignore[no-any-return]
+        return wind_moments(
             self.x, self.P, _NO_R if R is None else R, R is not None, cfg.model_error_rel_h, cfg.model_error_d_m_s
         )
 

@@ -83,7 +83,7 @@ def open_ulog(path: Path) -> tuple[ULog, list[str]]:
     f = BoundedFile(path)
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-            ulog = ULog(f, TOPICS)  # type: ignore[arg-type]  # pyulog takes any binary file object
+            ulog = ULog(f, TOPICS)
     except Exception as e:  # pyulog raises plain exceptions on a bad header
         raise ValueError(f"{path}: not a readable ULog ({e})") from e
     finally:

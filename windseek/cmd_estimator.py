@@ -171,7 +171,7 @@ def summary(core: LiveCore, pub: Publisher, reason: str) -> dict[str, Any]:
     s.update({"duration_s": round(core.elapsed_s, 3), "speed_m_s": round(speed, 3), "from_deg": round(from_deg, 1),
               "wind_cov_published": pub.sent, "imu_message": chosen.pop("imu", None), "inputs": chosen,
               "stop_reason": reason})  # fmt: skip
-    return json_safe(s)  # type: ignore[no-any-return]
+    return json_safe(s)
 
 
 def line(core: LiveCore, pub: Publisher) -> str:

@@ -28,7 +28,7 @@ import time
 from collections import Counter, deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from mission.runners.autopilot import find_autopilot
 from mission.vehicle import CommandError, VehicleState, Wait
 from wire import px4_modes
 from wire.names import publish
+
+if TYPE_CHECKING:
+    from wire.signing_bridge import SigningBridge
 
 #: Messages the runner subscribes to (the sink's inputs are added by the wind source).
 STATE_MESSAGES = ("HEARTBEAT", "EXTENDED_SYS_STATE", "LOCAL_POSITION_NED", "ATTITUDE_QUATERNION",
@@ -72,6 +75,9 @@ class LinkConfig:
 
 class MavsdkVehicle:
     """See the module docstring. Use as ``async with MavsdkVehicle(cfg, say, sink) as v: ...``."""
+
+    #: The signing bridge while one runs (set in _connect with a signing key; closed and None in close).
+    _bridge: SigningBridge | None
 
     def __init__(self, cfg: LinkConfig, say: Callable[[str], None], sink: Sink | None = None,
                  extra_messages: tuple[str, ...] = ()) -> None:  # fmt: skip

@@ -152,9 +152,9 @@ class BaseStrategy:
     """
 
     name = "base"
-
-    def __init__(self) -> None:
-        self.p: CommonParams | None = None
+    #: The parameters, set by :meth:`reset` (subclasses narrow the type to their own params);
+    #: :meth:`update` refuses to run before it.
+    p: CommonParams
 
     def reset(self, start_ned: np.ndarray, params: CommonParams, seed: int = 0) -> None:
         self.p = params
@@ -204,6 +204,8 @@ class BaseStrategy:
         """One tick of the verification sweep; its velocity (north, east) m/s, or None when it
         is over (aborted by a hit, or complete: then counted and possibly declared)."""
         p = self.p
+        # update() calls this only while a verification runs; _start_verify sets both.
+        assert self.verify is not None and self.verify_cand is not None
         if new_det:
             # Plume upwind of the candidate: not the end; the strategy takes over (surge). This
             # hit is a candidate however weak (else the next verification would start from the
@@ -324,7 +326,7 @@ class BaseStrategy:
 
     # ------------------------------------------------------------------ tick
     def update(self, obs: Observation) -> Setpoint:
-        if self.p is None:
+        if getattr(self, "p", None) is None:
             raise RuntimeError(f"{self.name}: reset() must be called before update()")
         p = self.p
         dt = 1.0 / p.rate_hz if self.t_prev is None else max(obs.t - self.t_prev, 0.0)
@@ -376,6 +378,7 @@ class BaseStrategy:
     def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
         """Fly over the declared point, descend to ``descend_altitude_m``, hold, then done."""
         p = self.p
+        assert self.declared is not None  # update() descends only once a source is declared
         d = self.declared[0:2] - obs.position_ned[0:2]
         dist = float(np.hypot(d[0], d[1]))
         over = dist < 1.0

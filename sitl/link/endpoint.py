@@ -68,6 +68,8 @@ class Endpoint:
         self.counters: Counter[str] = Counter()
         self._fd_link: dict[int, Link] = {}
         self.rx_hooks: list[Callable[[object, Link], None]] = []
+        # Called with every frame packed for sending (the tlog), once per frame however many links it goes to.
+        self.tx_hooks: list[Callable[[bytes], None]] = []
 
     def signing_counts(self) -> dict[str, int]:
         """The verifiers' counts over every link (empty without signing)."""
@@ -88,6 +90,8 @@ class Endpoint:
         enc = self._encoder
         buf = msg.pack(enc)
         enc.seq = (enc.seq + 1) % 256
+        for hook in self.tx_hooks:
+            hook(buf)
         return buf
 
     def send(self, msg: Any, link: Link | None = None) -> None:

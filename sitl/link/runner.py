@@ -54,6 +54,9 @@ class SitlLink:
             PARAM_SET of one is refused (PARAM_ERROR PERMISSION_DENIED) and the value stays.
     """
 
+    #: Why the background loop stopped (set by :meth:`start`: None while it runs or stopped cleanly).
+    error: Exception | None
+
     def __init__(self, sim: Simulation, transports: list[Transport], speed: float = 1.0,
                  true_wind_hz: float = 5.0, signing_key: SigningKey | None = None,
                  allow_sim_params: bool = False) -> None:  # fmt: skip
@@ -226,7 +229,7 @@ class SitlLink:
     def start(self) -> SitlLink:
         """Serve in a background thread (tests, embedding); a crash is kept in :attr:`error`."""
         self._stop.clear()
-        self.error: Exception | None = None
+        self.error = None
         self._thread = threading.Thread(target=self._serve_logged, name="sitl-link", daemon=True)
         self._thread.start()
         return self

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -58,6 +59,10 @@ class WorldKnobs:
         w = self.world
         return np.asarray(w.wind.mean(w.t, np.array([0.0, 0.0, -w.wind.reference_height_m])), dtype=float)
 
+    def wind_mean_axis(self, axis: int) -> float:
+        """One component (0 north, 1 east, 2 down) of :meth:`wind_mean`, m/s."""
+        return self.wind_mean()[axis]
+
     def set_wind(self, axis: int, value: float) -> None:
         # The kernels read the schedule arrays by reference: overwriting every entry makes the
         # new mean wind hold from now on without rebuilding the field.
@@ -81,6 +86,11 @@ class WorldKnobs:
         sens.config = replace(cfg, **{group: replace(getattr(cfg, group), **{attr: float(value)})})
 
 
+def _set_float(obj: object, attr: str, value: float) -> None:
+    """Set a float field (a FlightConfig setting from a PARAM_SET value)."""
+    setattr(obj, attr, float(value))
+
+
 def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: WorldKnobs,
                     speed: Callable[[], float], set_speed: Callable[[float], None],
                     sim_lock: Callable[[], str | None] | None = None) -> list[Param]:  # fmt: skip
@@ -90,21 +100,20 @@ def sitl_parameters(autopilot: BuiltinAutopilot, geofence: Geofence, knobs: Worl
     it is the ``locked`` of every SIM_* parameter (the SITL's own API is not locked)."""
     params: list[Param] = []
     for g in GAIN_NAMES:
-        params.append(Param(f"CTL_{g.upper()}"[:16], lambda g=g: autopilot.gain(g),
-                            lambda v, g=g: autopilot.set_gain(g, v), 0.0, 1e4))  # fmt: skip
+        params.append(Param(f"CTL_{g.upper()}"[:16], partial(autopilot.gain, g), partial(autopilot.set_gain, g),
+                            0.0, 1e4))  # fmt: skip
     cfg = autopilot.fc.config
     for name, attr, lo, hi in FLIGHT_PARAMS:
-        params.append(Param(name, lambda a=attr: getattr(cfg, a), lambda v, a=attr: setattr(cfg, a, float(v)), lo, hi))
+        params.append(Param(name, partial(getattr, cfg, attr), partial(_set_float, cfg, attr), lo, hi))
     params.append(Param("GF_ACTION", lambda: geofence.action,
                         lambda v: setattr(geofence, "action", int(v)), 0, 4, INT32))  # fmt: skip
     params.append(Param("SIM_SPEED", speed, set_speed, 0.05, 1000.0))
     for i, axis in enumerate("NED"):
-        params.append(Param(f"SIM_WIND_{axis}", lambda i=i: knobs.wind_mean()[i],
-                            lambda v, i=i: knobs.set_wind(i, v), -60.0, 60.0))  # fmt: skip
+        params.append(Param(f"SIM_WIND_{axis}", partial(knobs.wind_mean_axis, i), partial(knobs.set_wind, i),
+                            -60.0, 60.0))  # fmt: skip
     params.append(Param("SIM_TURB_SCALE", lambda: knobs.turb_scale, knobs.set_turbulence, 0.0, 10.0))
     for name, group, attr, hi in NOISE_PARAMS:
-        params.append(Param(name, lambda g=group, a=attr: knobs.noise(g, a),
-                            lambda v, g=group, a=attr: knobs.set_noise(g, a, v), 0.0, hi))  # fmt: skip
+        params.append(Param(name, partial(knobs.noise, group, attr), partial(knobs.set_noise, group, attr), 0.0, hi))
     params.append(Param("MAV_SYS_ID", lambda: 1, None, 1, 1, INT32))
     for p in params:
         if p.name.startswith("SIM_"):

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -32,6 +32,8 @@ from wire.dialect import mavlink
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
+    from sitl.world.chem_sensor import ChemReading
+    from sitl.world.sensors import BaroSample, GnssSample, MagSample
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 
@@ -132,6 +134,13 @@ class Telemetry:
 
     def usec(self, t: float | None = None) -> int:
         return int((self.sim.t if t is None else t) * 1e6)
+
+    # ingest() keeps each sensor's sample as the world produced it: "mag" a MagSample, "baro" a BaroSample.
+    def _mag(self) -> MagSample | None:
+        return cast("MagSample | None", self.latest.get("mag"))
+
+    def _baro(self) -> BaroSample | None:
+        return cast("BaroSample | None", self.latest.get("baro"))
 
     def _geo(self, pos: np.ndarray) -> tuple[float, float, float]:
         return ned_to_geodetic(pos, self.home_cfg)
@@ -281,25 +290,27 @@ class Telemetry:
         sim = self.sim
         amsl = self.home_cfg.alt_m - float(sim.position[2])
         rel = float(sim.fc.home[2] - sim.position[2])
-        baro = self.latest.get("baro")
+        baro = self._baro()
         monotonic = baro.altitude_m if baro is not None else amsl
         local = -float(sim.position[2])
         return [mavlink.MAVLink_altitude_message(self.usec(), monotonic, amsl, local, rel, -local, math.nan)]
 
     def highres_imu(self) -> list:
-        imu = self.latest.get("imu")
+        # ingest() keeps the world's IMU sample as it is: (t, specific force FRD, rates FRD).
+        imu = cast("tuple[float, np.ndarray, np.ndarray] | None", self.latest.get("imu"))
         if imu is None:
             return []
         t, acc, gyr = imu
-        mag = self.latest.get("mag")
-        baro = self.latest.get("baro")
+        mag = self._mag()
+        baro = self._baro()
         m = mag.field_gauss if mag is not None else np.zeros(3)
         pres = baro.pressure_pa / 100.0 if baro is not None else 0.0
         palt = baro.altitude_m if baro is not None else 0.0
         temp = baro.temperature_c if baro is not None else 0.0
         return [
             mavlink.MAVLink_highres_imu_message(
-                self.usec(t), *map(float, acc), *map(float, gyr), *map(float, m), pres, 0.0, palt, temp, 0x1FFF, 0
+                self.usec(t), float(acc[0]), float(acc[1]), float(acc[2]), float(gyr[0]), float(gyr[1]), float(gyr[2]),
+                float(m[0]), float(m[1]), float(m[2]), pres, 0.0, palt, temp, 0x1FFF, 0,
             )
         ]
 
@@ -328,7 +339,7 @@ class Telemetry:
         ]  # fmt: skip
 
     def raw_rpm(self) -> list:
-        esc = self.latest.get("esc")
+        esc = cast("tuple[float, np.ndarray] | None", self.latest.get("esc"))  # (t, rotor speeds rad/s), as ingested
         if esc is None:
             return []
         return [mavlink.MAVLink_raw_rpm_message(i, float(w) * RAD_S_TO_RPM) for i, w in enumerate(esc[1])]
@@ -367,15 +378,15 @@ class Telemetry:
         return [mavlink.MAVLink_mission_current_message(seq, n, state, 1 if fc.mode == Mode.MISSION else 2)]
 
     # ------------------------------------------------------------------ sample-driven builders
-    def hil_sensor(self, imu: tuple) -> list:
+    def hil_sensor(self, imu: tuple[float, np.ndarray, np.ndarray]) -> list:
         t, acc, gyr = imu
-        mag = self.latest.get("mag")
-        baro = self.latest.get("baro")
+        mag = self._mag()
+        baro = self._baro()
         updated = HIL_ACC_GYRO
         m = (0.0, 0.0, 0.0)
         pres = palt = temp = 0.0
         if mag is not None:
-            m = tuple(float(v) for v in mag.field_gauss)
+            m = (float(mag.field_gauss[0]), float(mag.field_gauss[1]), float(mag.field_gauss[2]))
             if self._mag_new:
                 updated |= HIL_MAG
                 self._mag_new = False
@@ -386,11 +397,12 @@ class Telemetry:
                 self._baro_new = False
         return [
             mavlink.MAVLink_hil_sensor_message(
-                self.usec(t), *map(float, acc), *map(float, gyr), *m, pres, 0.0, palt, temp, updated, 0
+                self.usec(t), float(acc[0]), float(acc[1]), float(acc[2]), float(gyr[0]), float(gyr[1]), float(gyr[2]),
+                *m, pres, 0.0, palt, temp, updated, 0,
             )
         ]
 
-    def esc_status(self, esc: tuple) -> list:
+    def esc_status(self, esc: tuple[float, np.ndarray]) -> list:
         t, w = esc
         self.esc_counter += 1
         rpm = [int(round(float(v) * RAD_S_TO_RPM)) for v in w]
@@ -398,7 +410,7 @@ class Telemetry:
         amps = [float(self.current_a) / 4.0] * 4
         return [mavlink.MAVLink_esc_status_message(0, self.usec(t), rpm, volts, amps)]
 
-    def gps_raw_int(self, g: object) -> list:
+    def gps_raw_int(self, g: GnssSample) -> list:
         vel = g.vel_ned
         gs = float(math.hypot(vel[0], vel[1]))
         cog = int((math.degrees(math.atan2(vel[1], vel[0])) % 360.0) * 100) if gs > 0.1 else 65535
@@ -409,6 +421,6 @@ class Telemetry:
             )
         ]  # fmt: skip
 
-    def chem(self, s: object) -> list:
+    def chem(self, s: ChemReading) -> list:
         value = getattr(s, "value_mg_m3", getattr(s, "value", math.nan))
         return [mavlink.MAVLink_named_value_float_message(int(s.t * 1000) & 0xFFFFFFFF, b"CHEM", float(value))]

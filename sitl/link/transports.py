@@ -130,7 +130,7 @@ class UdpTransport(Transport):
     def read(self, fd: int) -> list[bytes]:  # type: ignore[override]
         # One entry per datagram: a MAVLink frame never spans datagrams, so the endpoint parses
         # each on its own and a truncated frame cannot swallow the next sender's frame.
-        chunks = []
+        chunks: list[bytes] = []  # Datagrams
         while True:
             try:
                 data, addr = self.sock.recvfrom(_MAX_READ)
@@ -202,6 +202,7 @@ class TcpServerTransport(Transport):
         return [self.server.fileno(), *self.clients]
 
     def read(self, fd: int) -> bytes:
+        conn: socket.socket | None
         if fd == self.server.fileno():
             try:
                 conn, _ = self.server.accept()

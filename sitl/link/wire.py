@@ -78,15 +78,12 @@ class TlogWriter:
 
     def attach(self, link: SitlLink) -> TlogWriter:
         ep = link.endpoint
-        encode = ep.encode
 
-        def tapped(msg: Any) -> bytes:
-            buf = encode(msg)
-            self.write(buf)
-            return buf
+        def received(msg: Any, lk: Link) -> None:  # msg: a parsed pymavlink message
+            self.write(msg.get_msgbuf())
 
-        ep.encode = tapped  # every outgoing frame is packed exactly once, here
-        ep.rx_hooks.append(lambda msg, lk: self.write(msg.get_msgbuf()))
+        ep.tx_hooks.append(self.write)  # every outgoing frame is packed exactly once, in Endpoint.encode
+        ep.rx_hooks.append(received)
         return self
 
     def close(self) -> None:

@@ -43,7 +43,7 @@ def _build(path: str, cls: type, data: Any, skip: tuple[str, ...] = ()) -> Any:
     required = [
         f.name
         for f in dataclasses.fields(cls)
-        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING  # type: ignore[misc]
+        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
     ]
     missing = [n for n in required if n not in data]
     if missing:
@@ -64,7 +64,7 @@ def parse_building(path: str, data: Any) -> Building:
         raise ConfigError(f"{path}.type", kind, f"must be one of {sorted(_BUILDING_TYPES)}")
     if kind == "polygon" and "vertices_m" in data:
         data = {**data, "vertices_m": tuple(tuple(v) if isinstance(v, list | tuple) else v for v in data["vertices_m"])}
-    return _build(path, _BUILDING_TYPES[kind], data, skip=("type",))  # type: ignore[no-any-return]
+    return _build(path, _BUILDING_TYPES[kind], data, skip=("type",))
 
 
 def parse_urban_scene(data: Mapping[str, Any], name: str = "") -> UrbanScene:
