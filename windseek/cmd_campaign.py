@@ -6,6 +6,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from mission.campaign.store import ResultStore
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -64,15 +68,23 @@ def _run(args: argparse.Namespace) -> int:
     spec = load_campaign(args.target)
     tasks = expand(spec)  # every value checked before anything runs
     out = Path(args.out) if args.out else Path("logs") / "campaigns" / spec.name
-    if args.dry_run:
-        _plan(spec.name, tasks, finished_missions(out, spec.name), out)
+    todo = _plan(spec.name, tasks, finished_missions(out, spec.name), out)  # an unusable folder fails here
+    if args.dry_run or not todo:
         return 0
-    store = ResultStore(out, spec.name, flush_s=args.flush).open()
+    from mission.campaign.execute import connect
+
+    client, cluster = connect(args.scheduler, args.workers)  # an unreachable scheduler fails here, before any work
     try:
-        todo = _plan(spec.name, tasks, store.finished(), out)
-        return _fly(args, spec.name, todo, store, out) if todo else 0
+        store = ResultStore(out, spec.name, flush_s=args.flush).open()
+        try:
+            finished = store.finished()  # again, under the lock
+            return _fly(args, spec.name, client, [t for t in todo if t.key not in finished], store, out)
+        finally:
+            store.close()
     finally:
-        store.close()
+        client.close(timeout=10)
+        if cluster is not None:
+            cluster.close(timeout=20)
 
 
 def _plan(name: str, tasks: list, finished: dict[str, str], out: Path) -> list:
@@ -88,25 +100,18 @@ def _plan(name: str, tasks: list, finished: dict[str, str], out: Path) -> list:
     return todo
 
 
-def _fly(args: argparse.Namespace, name: str, todo: list, store: object, out: Path) -> int:
-    from mission.campaign.execute import connect, execute
+def _fly(args: argparse.Namespace, name: str, client: Any, todo: list, store: ResultStore, out: Path) -> int:
+    from mission.campaign.execute import execute
 
-    client, cluster = connect(args.scheduler, args.workers)  # an unreachable scheduler fails here, before any work
+    where = args.scheduler or f"a local cluster of {len(client.nthreads())} workers"
+    print(f"campaign {name}: flying {len(todo)} missions on {where}", file=sys.stderr)
     try:
-        where = args.scheduler or f"a local cluster of {len(client.nthreads())} workers"
-        print(f"campaign {name}: flying on {where}", file=sys.stderr)
-        try:
-            rep = execute(client, todo, store, f"campaign {name}", progress=not args.no_progress,  # type: ignore[arg-type]
-                          retries=args.retries)  # fmt: skip
-        except KeyboardInterrupt:
-            store.flush()  # type: ignore[attr-defined]
-            print(f"campaign {name}: interrupted; {store.written} missions written to {out}; "  # type: ignore[attr-defined]
-                  "run the same command again to resume", file=sys.stderr)  # fmt: skip
-            return 130
-    finally:
-        client.close(timeout=10)
-        if cluster is not None:
-            cluster.close(timeout=20)
+        rep = execute(client, todo, store, f"campaign {name}", progress=not args.no_progress, retries=args.retries)
+    except KeyboardInterrupt:
+        store.flush()
+        print(f"campaign {name}: interrupted; {store.written} missions written to {out}; run the same command "
+              "again to resume", file=sys.stderr)  # fmt: skip
+        return 130
     print(f"campaign {name}: {rep.done} missions in {rep.wall_s:.0f} s ({rep.per_hour:,.0f} per hour), "
           f"{rep.errors} errors; results in {out} (windseek campaign report {out})", file=sys.stderr)  # fmt: skip
     for line in rep.error_lines[:10]:
