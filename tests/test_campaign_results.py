@@ -90,6 +90,19 @@ def test_store_appends_resumes_and_never_counts_twice(tmp_path: Path, flown: tup
     assert read_results(out, dedupe=False).num_rows == 12
 
 
+def test_back_to_back_runs_in_one_process_keep_every_part(tmp_path: Path, flown: tuple[list, list[dict]]) -> None:
+    # Two runs within the same second used to name their first part alike, and the second replaced the first.
+    _, rows = flown
+    out = tmp_path / "res"
+    for chunk in (rows[:2], rows[2:4], rows[4:6]):
+        store = ResultStore(out, "short", flush_s=1e9).open()
+        for r in chunk:
+            store.add(r)
+        store.close(compact=False)
+    assert len(list(out.glob("part-*.parquet"))) == 3
+    assert read_results(out, dedupe=False).column("key").to_pylist() == [r["key"] for r in rows[:6]]
+
+
 def test_error_rows_are_superseded_by_a_later_success(tmp_path: Path, flown: tuple[list, list[dict]]) -> None:
     tasks, rows = flown
     store = ResultStore(tmp_path / "r", "short").open()
@@ -189,3 +202,29 @@ def test_cli_report_prints_tables_and_writes_plots(tmp_path: Path, flown: tuple[
     r = subprocess.run([sys.executable, "-m", "windseek.cli", "campaign", "report", str(tmp_path / "none")],
                        capture_output=True, text=True, timeout=180)  # fmt: skip
     assert r.returncode == 2 and "no such results folder" in r.stderr
+
+
+def test_progress_lines_say_done_rate_and_eta() -> None:
+    import time
+
+    from mission.campaign.execute import _Progress
+
+    lines: list[str] = []
+    progress = _Progress("camp", 3, enabled=True, out=lines.append, every_s=0.0)
+    progress.tty = False  # the plain lines of a batch job's log, not the terminal bar
+    with progress as bar:
+        bar.t0 = time.monotonic() - 10.0  # one mission done 10 s after the start: 360 per hour, 20 s to go
+        bar.advance(0)
+        bar.advance(1)
+        bar.advance(1)
+    assert len(lines) == 3
+    first = lines[0]
+    assert first.startswith("camp: 1/3 missions, ") and first.endswith(", 0 errors")
+    rate = float(first.split(", ")[1].removesuffix("/h").replace(",", ""))
+    assert 355 <= rate <= 360 and "ETA 0:20" in first
+    assert lines[1].startswith("camp: 2/3 missions") and "ETA 0:05" in lines[1] and lines[1].endswith("1 errors")
+    assert lines[2].startswith("camp: 3/3 missions") and "ETA 0:00" in lines[2]
+    silent: list[str] = []
+    with _Progress("camp", 3, enabled=False, out=silent.append) as bar:
+        bar.advance(0)
+    assert silent == []

@@ -19,7 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="windseek campaign SPEC.toml: fly every mission of a campaign file (a grid of scenarios, "
         "strategies, wind sources, seeds and parameters) on a local Dask cluster or an existing one, appending "
         "each result to a Parquet results folder as it finishes; re-running skips finished missions.  "
-        "windseek campaign report RESULTS: success with a 95 %% Wilson interval, median and p90 of the path "
+        "windseek campaign report RESULTS: success with a 95 % Wilson interval, median and p90 of the path "
         "ratios by any grouping, and PNG plots.",
     )
     p.add_argument("target", help="a campaign file (SPEC.toml), or the word 'report'")

@@ -156,10 +156,12 @@ class _Window:
 
 
 class _Progress:
-    """Missions done / total, rate per hour, ETA: a rich bar on a terminal, else a line every 30 s."""
+    """Missions done / total, rate per hour, ETA: a rich bar on a terminal, else a line every ``every_s``
+    seconds (and at the end), for logs of batch jobs."""
 
-    def __init__(self, label: str, total: int, enabled: bool, out: Callable[[str], None] | None = None) -> None:
-        self.label, self.total, self.enabled = label, total, enabled
+    def __init__(self, label: str, total: int, enabled: bool, out: Callable[[str], None] | None = None,
+                 every_s: float = 30.0) -> None:
+        self.label, self.total, self.enabled, self.every_s = label, total, enabled, every_s
         self.out = out or (lambda s: print(s, file=sys.stderr, flush=True))
         self.done, self.t0, self.t_line = 0, time.monotonic(), time.monotonic()
         self.bar: Any = None
@@ -186,7 +188,7 @@ class _Progress:
         rate = self.rate()
         if self.bar is not None:
             self.bar.update(self.task, advance=1, rate=f"{rate:,.0f}/h", errors=f"{errors} errors" if errors else "")
-        elif self.enabled and (time.monotonic() - self.t_line >= 30.0 or self.done == self.total):
+        elif self.enabled and (time.monotonic() - self.t_line >= self.every_s or self.done == self.total):
             self.t_line = time.monotonic()
             eta = (self.total - self.done) / rate * 3600.0 if rate > 0 else float("nan")
             self.out(f"{self.label}: {self.done}/{self.total} missions, {rate:,.0f}/h, ETA {_hms(eta)}, "

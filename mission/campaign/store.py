@@ -125,6 +125,10 @@ class ResultStore:
         self._rows: list[dict[str, Any]] = []
         self._last = time.monotonic()
         self._seq = 0
+        # Part names must never collide: two stores of one process within one second (a resumed run,
+        # a test) would otherwise replace each other's first part and lose its rows. The store's
+        # creation time [ns] keeps the names unique and in the order the rows were written.
+        self._token = f"{time.time_ns():016x}"
         self._lock_fd: int | None = None
         self.written = 0
 
@@ -165,10 +169,14 @@ class ResultStore:
         self._last = time.monotonic()
         if not self._rows:
             return
-        self._write(to_table(self._rows), f"part-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-{self._seq:05d}")
+        self._write(to_table(self._rows), self._stem(f"{self._seq:05d}"))
         self.written += len(self._rows)
         self._seq += 1
         self._rows = []
+
+    def _stem(self, what: str) -> str:
+        """A part's unique name: time, process, this store's creation time [ns], then ``what``."""
+        return f"part-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-{self._token}-{what}"
 
     def _write(self, table: pa.Table, stem: str) -> Path:
         meta = {META_KEY: str(SCHEMA_VERSION).encode(), b"windseek.campaign.name": self.campaign.encode()}
@@ -183,7 +191,7 @@ class ResultStore:
         parts = _parts(self.path)
         if len(parts) <= 1:
             return
-        merged = self._write(read_results(self.path), f"part-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-merged")
+        merged = self._write(read_results(self.path), self._stem("merged"))
         for p in parts:
             if p != merged:
                 p.unlink()
