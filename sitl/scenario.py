@@ -281,8 +281,10 @@ def builtin_scenarios() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
-def load_scenario(name_or_path: str | Path) -> Scenario:
-    """Load a built-in scenario by name (``paper-s1``) or a TOML file by path."""
+def scenario_table(name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+    """The parsed TOML table of a built-in scenario (by name) or a scenario file (by path), not yet
+    validated, and its source (``builtin:NAME`` or the path): for callers that vary it before
+    :func:`parse_scenario` (campaign grids). A relative vehicle ``.toml`` path is made absolute."""
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists():
         if not p.is_file():
@@ -308,4 +310,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         vp = Path(data["vehicle"])
         if not vp.is_absolute() and p.suffix == ".toml":
             data["vehicle"] = str((p.parent / vp).resolve())
+    return data, source
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a built-in scenario by name (``paper-s1``) or a TOML file by path."""
+    data, source = scenario_table(name_or_path)
     return parse_scenario(data, source)

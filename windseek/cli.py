@@ -17,6 +17,7 @@ from windseek import numba_cache
 COMMANDS = [
     "windseek.cmd_sim",
     "windseek.cmd_search",
+    "windseek.cmd_campaign",
     "windseek.cmd_estimate",
     "windseek.cmd_sitl",
     "windseek.cmd_mission",

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import sys
 from pathlib import Path
 
 #: Packages whose kernels are cached (files that mention numba).
 KERNEL_PACKAGES = ("sitl", "vehicle", "estimator", "mission")
 _configured: str | None = None
+_KERNEL_TEXT = re.compile(rb"\bnumba\b")
 
 
 def cache_dir(root: Path | None = None) -> Path:
@@ -33,7 +35,9 @@ def cache_dir(root: Path | None = None) -> Path:
         if folder.is_dir():
             for f in sorted(folder.rglob("*.py")):
                 text = f.read_bytes()
-                if b"numba" in text:  # only kernel modules: editing plain Python recompiles nothing
+                # Only kernel modules (a mention of numba_cache alone is not one): editing plain Python
+                # recompiles nothing.
+                if _KERNEL_TEXT.search(text):
                     digest.update(f.relative_to(root).as_posix().encode() + text)
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return base / "windseek" / "numba" / digest.hexdigest()[:16]

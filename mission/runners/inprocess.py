@@ -64,6 +64,8 @@ class TrialResult:
     reach_path_m: horizontal path flown until the vehicle first came within ``SUCCESS_RADIUS_M``
         of the source, horizontally (nan if it never did): the part of ``path_m`` spent finding
         the source, the rest is spent deciding it is there.
+    wind_rmse_ned: RMSE [m/s] of the wind the strategy was given (N, E, D) against the true wind at
+        the vehicle (turbulence included), over the search ticks; nan without wind information.
     start_distance_m: horizontal distance from the start to the true source.
     cause: "" on success, else one of FAILURE_CAUSES.
     verifications: the strategy's verification sweeps, in order, each a dict: ``t_start_s``,
@@ -93,6 +95,7 @@ class TrialResult:
     track: list[list[float]] = field(default_factory=list)  # [t, n, e, d] per second when asked
     reach_path_m: float = math.nan
     verifications: list[dict] = field(default_factory=list)
+    wind_rmse_ned: list[float] = field(default_factory=lambda: [math.nan] * 3)
 
     @property
     def path_ratio(self) -> float:
@@ -154,7 +157,7 @@ def run_trial(
     if recorder is not None:
         recorder.attach(sim, vehicle, strat, p)
     src = np.asarray(sim.chem.sources_ned[0] if sim.chem is not None else np.zeros(3), dtype=float)
-    score = _Scorer(sim, src, p.rate_hz, keep_track)
+    score = _Scorer(sim, src, p.rate_hz, keep_track, vehicle)
     vehicle.tick_hooks.append(score.every_tick)
     obstacles = Obstacles.from_buildings(sc.urban.buildings) if sc.urban is not None and sc.urban.buildings else None
     loop = MissionLoop(vehicle, strat, p, InProcessWind(vehicle), limits,
@@ -182,6 +185,7 @@ def run_trial(
         diag=getattr(strat, "diag", {}), wall_s=time.perf_counter() - wall0, track=score.track,
         reach_path_m=score.reach_path,
         verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
+        wind_rmse_ned=score.wind_rmse(),
     )
     if recorder is not None:
         recorder.finish(result)
@@ -190,10 +194,13 @@ def run_trial(
 
 class _Scorer:
     """Truth-based figures of a trial, taken at every search tick: the horizontal path flown, the
-    path until first within ``SUCCESS_RADIUS_M`` of the source, the track once per second."""
+    path until first within ``SUCCESS_RADIUS_M`` of the source, the wind error, the track once per second."""
 
-    def __init__(self, sim: Simulation, src: np.ndarray, rate_hz: float, keep_track: bool) -> None:
-        self.sim, self.src, self.keep_track = sim, src, keep_track
+    def __init__(self, sim: Simulation, src: np.ndarray, rate_hz: float, keep_track: bool,
+                 vehicle: LockstepVehicle) -> None:  # fmt: skip
+        self.sim, self.src, self.keep_track, self.vehicle = sim, src, keep_track, vehicle
+        self.wind_sq = np.zeros(3)
+        self.wind_n = 0
         self.every = round(rate_hz)
         self.path = 0.0
         self.reach_path = math.nan
@@ -211,6 +218,16 @@ class _Scorer:
         self.path_m.append(self.path)
         if math.isnan(self.reach_path) and float(np.hypot(*(pos[0:2] - self.src[0:2]))) <= SUCCESS_RADIUS_M:
             self.reach_path = self.path
+        info = self.vehicle.wind_info
+        if info is not None:
+            self.wind_sq += (info.wind_ned - self.sim.wind_at_vehicle) ** 2
+            self.wind_n += 1
+
+    def wind_rmse(self) -> list[float]:
+        """RMSE [m/s] N, E, D of the strategy's wind against the truth over the search ticks (nan if none)."""
+        if self.wind_n == 0:
+            return [math.nan] * 3
+        return [round(float(v), 4) for v in np.sqrt(self.wind_sq / self.wind_n)]
 
     def every_tick(self, t: float) -> None:
         """The track, once per second from the first tick (take-off included)."""
