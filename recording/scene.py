@@ -175,9 +175,11 @@ class SceneMixin(RecorderBase):
         # The image's transform applies to its children too: the labels are its siblings.
         log("map/colorbar/image", rr.Transform3D(translation=[x_bar, y0, 0.0], scale=[h, h, 1.0]))
         log("map/colorbar/image", rr.Image(rgba.reshape(len(c), 1, 4), draw_order=39.0))
-        labels = [f"{v:g}" for v in c]
-        labels[0] += " mg/m³"
-        self._label("map/colorbar/labels", [(x_bar + 0.5 * h, y0 + h * (i + 0.5)) for i in range(len(c))], labels)
+        # Short labels left of the bar (the viewer centres a label on its point: on the bar, the labels'
+        # boxes hid its colours), the unit under it.
+        self._label("map/colorbar/labels", [(x_bar - 0.8 * h, y0 + h * (i + 0.5)) for i in range(len(c))],
+                    [f"{v:g}" for v in c])  # fmt: skip
+        self._label("map/colorbar/unit", (x_bar + 0.5 * h, y0 + h * (len(c) + 0.6)), "mg/m³")
         log("world/north", rr.Arrows3D(origins=[[n0 + pad, e0 + pad, 0.0]], vectors=[[0.15 * span, 0.0, 0.0]],
                                        labels=["N"], colors=[C_FURNITURE], radii=ui(2.0)))  # fmt: skip
 
