@@ -179,7 +179,7 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
         rrb.Horizontal(plot_view("speed", lay), plot_view("direction", lay)),
         rrb.Tabs(wind_ned, plot_view("rotors", lay), active_tab=0),
         # The phase view shows its three lanes; every plot gets >= 20 px per unit of its value axis.
-        row_shares=[1.0, 1.0, 1.1, 3.4],
+        row_shares=[1.25, 1.0, 1.1, 3.4],
     )  # fmt: skip
     return rrb.Blueprint(
         rrb.Horizontal(left, right, column_shares=[1, 1]),
