@@ -215,6 +215,14 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     assert len({tuple(c) for c in colors}) > 1  # coloured by concentration
     t_dec, lab = la.column("map/sources/declared/label", "Points2D:labels")
     assert lab == [["declared 90%"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
+    # In 3D the labels sit on their own points, the true source's above it, the declared one's below:
+    # a declaration a few metres off no longer hides one label under the other.
+    _, true_lab = la.vectors("world/sources/true/label", "Points3D:positions")
+    _, dec_lab = la.vectors("world/sources/declared/label", "Points3D:positions")
+    np.testing.assert_allclose(true_lab[-1], [10.0, 0.0, -5.0])
+    np.testing.assert_allclose(dec_lab[-1], [9.0, 1.0, 3.0])
+    assert la.column("world/sources/declared/label", "Points3D:labels")[1] == [["declared 90%"]]
+    assert la.column("world/sources/true/label", "Points3D:labels")[1] == [["source"]]
     assert la.texts("log/strategy") == [(pytest.approx(1.0), "surge")]
     _, lvl = la.column("log/strategy", "TextLog:level")
     assert lvl == [["WARN"]]
