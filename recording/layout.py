@@ -17,8 +17,12 @@ The layout::
     |                                | wind speed | wind from             |
     +----------------+---------------+ [wind north/east/down | rotors]    |
     | 3D             | run summary   |                                    |
-    +----------------+---------------+------------------------------------+
-    | events                                                              |
+    +----------------+---------------+                                    |
+    | events                         |                                    |
+    +--------------------------------+------------------------------------+
+
+The plots take the whole height of the right column: at a 1600 x 1000 window a plot needs about
+20 pixels per unit of its value axis before the viewer labels the axis (a wind plot spans ~5 m/s).
 """
 
 from __future__ import annotations
@@ -47,8 +51,9 @@ PLOTS: dict[str, tuple[str, str, tuple[str, ...], bool]] = {
 #: Other panels: key -> title.
 PANELS = {"map": "map (north up)", "3d": "3D (NED)", "summary": "run summary", "events": "events",
           "phases": "mission phase · strategy state · flight mode"}  # fmt: skip
-#: Fraction of the flight's duration added on the right of every plot: the legends sit there.
-LEGEND_PAD = 0.2
+#: Fraction of the flight's duration added on the right of every plot: the legends sit there (a
+#: legend is ~180 px wide: a fifth of a plot half a 1600 px window wide).
+LEGEND_PAD = 0.3
 
 
 @dataclass
@@ -131,7 +136,9 @@ def map_view(lay: Layout) -> rrb.View:
     if lay.bounds_ne is not None:
         n0, n1, e0, e1 = lay.bounds_ne
         bounds = rrb.VisualBounds2D(x_range=(e0, e1), y_range=(-n1, -n0))
-    return rrb.Spatial2DView(origin="/map", name=PANELS["map"], visual_bounds=bounds,
+    # No chemical readings (a flight log): no concentration colour bar, which would suggest a plume.
+    contents = ["$origin/**", "- $origin/colorbar/**"] if "chem" in lay.missing else ["$origin/**"]
+    return rrb.Spatial2DView(origin="/map", name=PANELS["map"], visual_bounds=bounds, contents=contents,
                              background=rrb.Background(color=SCENE_BACKGROUND),
                              overrides={"/map/path": _up_to_cursor(), "/map/hits": _up_to_cursor()})  # fmt: skip
 
@@ -163,18 +170,19 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
                                                      TextLogColumn("EntityPath", visible=False)]),
     )  # fmt: skip
     summary = rrb.TextDocumentView(origin="/summary", name=PANELS["summary"])
-    left = rrb.Vertical(map_view(lay), rrb.Horizontal(view_3d(lay), summary, column_shares=[1, 1]),
-                        row_shares=[3, 2])  # fmt: skip
+    left = rrb.Vertical(map_view(lay), rrb.Horizontal(view_3d(lay), summary, column_shares=[1, 1]), events,
+                        row_shares=[3, 2, 1])  # fmt: skip
     wind_ned = rrb.Vertical(plot_view("north", lay), plot_view("east", lay), plot_view("down", lay),
                             name="wind north / east / down")  # fmt: skip
     right = rrb.Vertical(
         phases, plot_view("chem", lay),
         rrb.Horizontal(plot_view("speed", lay), plot_view("direction", lay)),
         rrb.Tabs(wind_ned, plot_view("rotors", lay), active_tab=0),
-        row_shares=[0.8, 1.3, 1.0, 2.4],
+        # The phase view shows its three lanes; every plot gets >= 20 px per unit of its value axis.
+        row_shares=[1.25, 1.0, 1.1, 3.4],
     )  # fmt: skip
     return rrb.Blueprint(
-        rrb.Vertical(rrb.Horizontal(left, right, column_shares=[1, 1]), events, row_shares=[4, 1]),
+        rrb.Horizontal(left, right, column_shares=[1, 1]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
         rrb.TimePanel(timeline=TIMELINE, state="collapsed"),

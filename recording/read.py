@@ -115,6 +115,25 @@ class RrdLog:
                     views.append((cls[0] if cls else "", _norm(origin[0]) if origin else "", name[0] if name else ""))
         return views
 
+    def blueprint_view_contents(self) -> dict[str, list[str]]:
+        """Origin -> the contents query of each view of the final blueprint (e.g. ``{"map":
+        ["$origin/**", "- $origin/colorbar/**"]}``); views sharing an origin keep the last."""
+        origins: dict[str, str] = {}
+        queries: dict[str, list[str]] = {}
+        final = self._final_blueprint()
+        for c in self._reader.stream(store=final).to_chunks() if final is not None else []:
+            rb = c.to_record_batch()
+            path = _norm(c.entity_path)
+            if "ViewBlueprint:space_origin" in rb.schema.names:
+                for v in rb.column("ViewBlueprint:space_origin").to_pylist():
+                    if v:
+                        origins[path] = _norm(v[0])
+            if "ViewContents:query" in rb.schema.names:
+                for v in rb.column("ViewContents:query").to_pylist():
+                    if v is not None:
+                        queries[path.removesuffix("/ViewContents")] = [str(q) for q in v]
+        return {origins[p]: q for p, q in queries.items() if p in origins}
+
     # ------------------------------------------------------------------ values
     def column(self, entity: str, component: str, timeline: str = TIMELINE) -> tuple[np.ndarray, list[Any]]:
         """Values of one component of an entity, sorted by time.

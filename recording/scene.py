@@ -19,6 +19,7 @@ Entity paths::
     map/vehicle, world/vehicle         the vehicle (Transform3D pose in 3D, with body, marker and axes)
     map/wind/*, world/wind/*           wind at the vehicle: truth and estimate (air-mass velocity)
     map/sources/*, world/sources/*     true source(s) and found radius, declared source and credible region
+                                       (labels on their own points: .../label)
     map/geofence, world/geofence       the geofence outline
     map/north, map/scale, map/colorbar, world/north   north arrow, scale bar, concentration colour bar
 """
@@ -53,6 +54,8 @@ from recording.style import (
 from recording.summary import FOUND_RADIUS_M
 
 Bounds = tuple[float, float, float, float]  # north min, north max, east min, east max [m]
+#: Where the true source's label sits in 3D relative to it (NED, m: above); the declared one's the opposite.
+LABEL_OFFSET_3D = np.array([0.0, 0.0, -4.0])
 
 
 def ui(px: float) -> float:
@@ -175,9 +178,11 @@ class SceneMixin(RecorderBase):
         # The image's transform applies to its children too: the labels are its siblings.
         log("map/colorbar/image", rr.Transform3D(translation=[x_bar, y0, 0.0], scale=[h, h, 1.0]))
         log("map/colorbar/image", rr.Image(rgba.reshape(len(c), 1, 4), draw_order=39.0))
-        labels = [f"{v:g}" for v in c]
-        labels[0] += " mg/m³"
-        self._label("map/colorbar/labels", [(x_bar + 0.5 * h, y0 + h * (i + 0.5)) for i in range(len(c))], labels)
+        # Short labels left of the bar (the viewer centres a label on its point: on the bar, the labels'
+        # boxes hid its colours), the unit under it.
+        self._label("map/colorbar/labels", [(x_bar - 0.8 * h, y0 + h * (i + 0.5)) for i in range(len(c))],
+                    [f"{v:g}" for v in c])  # fmt: skip
+        self._label("map/colorbar/unit", (x_bar + 0.5 * h, y0 + h * (len(c) + 0.6)), "mg/m³")
         log("world/north", rr.Arrows3D(origins=[[n0 + pad, e0 + pad, 0.0]], vectors=[[0.15 * span, 0.0, 0.0]],
                                        labels=["N"], colors=[C_FURNITURE], radii=ui(2.0)))  # fmt: skip
 
@@ -231,7 +236,11 @@ class SceneMixin(RecorderBase):
             return
         self.scene_points += [s[:2] for s in true]
         labels = ["source" if len(true) == 1 else f"source {i + 1}" for i in range(len(true))]
-        self.log_static("world/sources/true", rr.Points3D(true, radii=ui(6.0), colors=[C_SOURCE], labels=labels))
+        # 3D labels on their own points, the true source's above and the declared one's below (the
+        # viewer centres a label on its point: a declaration a few metres off hid the other label).
+        self.log_static("world/sources/true", rr.Points3D(true, radii=ui(6.0), colors=[C_SOURCE]))
+        self.log_static("world/sources/true/label", rr.Points3D(true + LABEL_OFFSET_3D, radii=ui(0.1),
+                                                                colors=[C_SOURCE], labels=labels))  # fmt: skip
         self.log_static("map/sources/true", rr.Points2D(to_map(true), radii=ui(6.0), colors=[C_SOURCE],
                                                         draw_order=20.0))  # fmt: skip
         off = np.array([0.0, -(FOUND_RADIUS_M + 3.0)])  # above the found circle
@@ -248,7 +257,9 @@ class SceneMixin(RecorderBase):
         d = np.asarray(ned, dtype=float).reshape(1, 3)
         self.scene_points.append(d[0, :2])
         label = "declared" if confidence is None else f"declared {100.0 * float(confidence):.0f}%"
-        self.log_at(t, "world/sources/declared", rr.Points3D(d, radii=ui(6.0), colors=[C_DECLARED], labels=[label]))
+        self.log_at(t, "world/sources/declared", rr.Points3D(d, radii=ui(6.0), colors=[C_DECLARED]))
+        self.log_at(t, "world/sources/declared/label", rr.Points3D(d - LABEL_OFFSET_3D, radii=ui(0.1),
+                                                                   colors=[C_DECLARED], labels=[label]))  # fmt: skip
         self.log_at(t, "map/sources/declared", rr.Points2D(to_map(d), radii=ui(6.0), colors=[C_DECLARED],
                                                            draw_order=21.0))  # fmt: skip
         self.log_at(t, "map/sources/declared/label", rr.Points2D(to_map(d) + np.array([0.0, FOUND_RADIUS_M + 3.0]),

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from recording.layout import LEGEND_PAD
 from recording.read import RrdLog
 from recording.recorder import MARKER_SPAN, RunRecorder
 from recording.sim_hook import record_simulation, wind_speed_from_deg
@@ -155,7 +156,8 @@ def test_blueprint_layout_and_ranges(sim_run: tuple[Simulation, RrdLog]) -> None
     ranges = log.blueprint_time_ranges()
     assert len(ranges) == 8  # 7 plots and the phase lanes
     for t0, t1 in ranges:
-        assert t0 == pytest.approx(0.0) and t1 == pytest.approx(14.98 + 0.2 * 14.98, abs=0.05)
+        assert t0 == pytest.approx(0.0) and t1 == pytest.approx(14.98 + LEGEND_PAD * 14.98, abs=0.05)
+    assert 0.25 <= LEGEND_PAD <= 0.4  # a legend (~180 px) clear of the data in a plot half a 1600 px window wide
     lay = log.layout()
     assert lay is not None and lay.t_range == pytest.approx((0.0, 14.96), abs=0.03)
     # Value axes fitted to the data: the rotor plot to the flight, not to the rotors at rest.
@@ -164,6 +166,8 @@ def test_blueprint_layout_and_ranges(sim_run: tuple[Simulation, RrdLog]) -> None
     # The map frames the search area (start and source with a margin), not the plume's extent.
     n0, n1, e0, e1 = lay.bounds_ne
     assert -20.0 < n0 < 0.0 and 60.0 < n1 < 80.0 and (e1 - e0) <= 1.5 * (n1 - n0)
+    # With chemical readings the map shows the concentration colour bar (everything under map/).
+    assert log.blueprint_view_contents()["map"] == ["$origin/**"]
 
 
 def test_colormaps_are_light_at_the_low_end() -> None:
@@ -211,6 +215,14 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     assert len({tuple(c) for c in colors}) > 1  # coloured by concentration
     t_dec, lab = la.column("map/sources/declared/label", "Points2D:labels")
     assert lab == [["declared 90%"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
+    # In 3D the labels sit on their own points, the true source's above it, the declared one's below:
+    # a declaration a few metres off no longer hides one label under the other.
+    _, true_lab = la.vectors("world/sources/true/label", "Points3D:positions")
+    _, dec_lab = la.vectors("world/sources/declared/label", "Points3D:positions")
+    np.testing.assert_allclose(true_lab[-1], [10.0, 0.0, -5.0])
+    np.testing.assert_allclose(dec_lab[-1], [9.0, 1.0, 3.0])
+    assert la.column("world/sources/declared/label", "Points3D:labels")[1] == [["declared 90%"]]
+    assert la.column("world/sources/true/label", "Points3D:labels")[1] == [["source"]]
     assert la.texts("log/strategy") == [(pytest.approx(1.0), "surge")]
     _, lvl = la.column("log/strategy", "TextLog:level")
     assert lvl == [["WARN"]]
@@ -221,6 +233,18 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     assert "no rotor speeds" in (la.document("missing/rotors") or "")
     assert ("TextDocument", "missing/rotors") in {(c, o) for c, o, _ in la.blueprint_views()}
     assert "rotors" not in {o for c, o, _ in la.blueprint_views() if c == "TimeSeries"}
+    # b had no chemical readings: its map leaves out the concentration colour bar (it would suggest a plume).
+    assert "map/colorbar/image" in lb.entity_paths() and lb.blueprint_count == 0
+    with RunRecorder(tmp_path / "c.rrd") as c:
+        c.vehicle(0.0, [0.0, 0.0, -5.0], [1.0, 0.0, 0.0, 0.0])
+    assert RrdLog(tmp_path / "c.rrd").blueprint_view_contents()["map"] == ["$origin/**", "- $origin/colorbar/**"]
+    assert la.blueprint_view_contents()["map"] == ["$origin/**"]
+    # The colour bar's labels sit left of the bar (not over its colours), its unit under it.
+    _, bar = la.vectors("map/colorbar/image", "Transform3D:translation")
+    _, labels = la.column("map/colorbar/labels", "Points2D:positions")
+    _, names = la.column("map/colorbar/labels", "Points2D:labels")
+    assert names[-1] == ["100", "10", "1", "0.1", "0.01"] and all(x < bar[-1][0] for x, _ in labels[-1])
+    assert la.column("map/colorbar/unit", "Points2D:labels")[1][-1] == ["mg/m³"]
 
 
 def test_path_segments_join_and_carry_the_state_colour(tmp_path: Path) -> None:
