@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: demo test venv bench lint clean
+.PHONY: demo test test-fast venv bench lint clean
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,12 +21,19 @@ demo: venv
 test: venv
 	$(BIN)/python -m pytest -q
 
+# The fast suite alone: everything but the end-to-end tests (processes, MAVSDK, MAVProxy).
+test-fast: venv
+	$(BIN)/python -m pytest -q -m "not e2e"
+
 bench: venv
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e ".[test,bench]"
 	$(BIN)/python benchmarks/sim_speed.py
 
+# Style, types (mypy, configured in pyproject.toml) and the house rules (import cycles, layering, file sizes).
 lint: venv
 	$(BIN)/ruff check .
+	$(BIN)/mypy
+	$(BIN)/python -m pytest -q tests/test_architecture.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

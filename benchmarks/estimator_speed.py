@@ -18,6 +18,9 @@ import time
 
 import numpy as np
 
+from windseek import numba_cache  # before any kernel module
+
+numba_cache.configure()
 from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
 from sitl.scenario import load_scenario
 from sitl.simulation import T_QUAT, Simulation

@@ -17,6 +17,9 @@ import time
 
 import numpy as np
 
+from windseek import numba_cache  # before any kernel module
+
+numba_cache.configure()
 from sitl.world.chem_sensor import ChemSensorConfig
 from sitl.world.plume import PlumeConfig, PuffPlume, Source
 from sitl.world.wind import KaimalTurbulence, SteadyWind, WindField

@@ -23,6 +23,9 @@ import json
 import time
 from pathlib import Path
 
+from windseek import numba_cache  # before any kernel module
+
+numba_cache.configure()
 from mission.evaluate import run_batch, summarize
 
 STRATEGIES = ("surge-cast", "zigzag", "anemotaxis")

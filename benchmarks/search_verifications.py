@@ -18,6 +18,9 @@ from __future__ import annotations
 import dev_set
 import numpy as np
 
+from windseek import numba_cache  # before any kernel module
+
+numba_cache.configure()
 from mission.evaluate import run_batch
 
 CLASSES = ((0.0, 3.0, "<= 3 m (plume end)"), (3.0, 8.0, "3-8 m (short)"), (8.0, np.inf, "> 8 m (far field)"))

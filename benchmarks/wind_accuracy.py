@@ -34,6 +34,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from windseek import numba_cache  # before any kernel module
+
+numba_cache.configure()
 from estimator.inprocess import InProcessRunner
 from estimator.metrics import accuracy
 from estimator.ukf import EstimatorConfig

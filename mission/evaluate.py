@@ -70,11 +70,11 @@ def run_batch(
     if sc.plume is None:
         raise ValueError(f"scenario {sc.name!r} has no [plume] table: nothing to search for")
     from mission.strategies import load_params
-    from mission.wind_source import WIND_MODES
+    from mission.wind_modes import INPROCESS_WIND_MODES
 
     load_params(strategy, params_path)
-    if wind not in WIND_MODES:
-        raise ValueError(f"wind mode {wind!r}: choose one of {', '.join(WIND_MODES)}")
+    if wind not in INPROCESS_WIND_MODES:
+        raise ValueError(f"wind mode {wind!r}: choose one of {', '.join(INPROCESS_WIND_MODES)}")
     seed0 = sc.seed if seed is None else int(seed)
     specs = [TrialSpec(scenario, strategy, wind, seed0 + i, params_path, time_limit_s) for i in range(trials)]
     results: list[TrialResult] = []

@@ -33,7 +33,7 @@ import numpy as np
 #: Abort causes, in the JSON summary's ``cause`` (plus "declared" for a normal end).
 CAUSES = (
     "declared", "search-ended", "time-limit", "geofence", "link-lost", "estimator-fault", "offboard-rejected",
-    "offboard-lost", "takeoff-failed", "landed", "interrupted",
+    "offboard-lost", "takeoff-failed", "landed", "interrupted", "crash",
 )  # fmt: skip
 
 

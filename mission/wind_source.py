@@ -32,10 +32,9 @@ from estimator.inprocess import AhrsErrorModel, model_params
 from estimator.ukf import EstimatorConfig, WindEstimator
 from mission.strategies.base import WindInfo
 from mission.strategies.params import CommonParams
+from mission.wind_modes import INPROCESS_WIND_MODES
 from sitl.simulation import T_QUAT, Simulation
 from vehicle.frames import quat_mul
-
-WIND_MODES = ("estimated", "oracle", "none")
 
 
 class UpwindFilter:
@@ -203,4 +202,4 @@ def make_wind_source(mode: str, sim: Simulation, params: CommonParams, imu_decim
         return OracleWind(sim, params)
     if mode == "none":
         return NoWind(sim, params)
-    raise ValueError(f"wind mode {mode!r}: choose one of {', '.join(WIND_MODES)}")
+    raise ValueError(f"wind mode {mode!r}: choose one of {', '.join(INPROCESS_WIND_MODES)}")

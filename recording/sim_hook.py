@@ -7,7 +7,7 @@ recommended rates (each rounded to a whole number of mode ticks):
     vehicle pose + trail, true wind arrow   vehicle_hz (25 Hz)
     true wind per axis, speed, from-dir     series_hz (25 Hz)
     rotor speeds (truth, rad/s)             series_hz
-    chemical reading (sim.chem_latest)      every new reading (the sensor's own rate)
+    chemical reading (sim.chem.latest)      every new reading (the sensor's own rate)
     plume slice at flight altitude          slice_hz (0.5 Hz)
     puffs                                   puffs_hz (2 Hz)
     flight mode / arming / crash changes    on change, as text at ``log/events``
@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from recording.rerun_log import RunRecorder
+from vehicle.frames import from_direction_deg
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
@@ -42,8 +43,7 @@ def wind_speed_from_deg(wind_ned: np.ndarray) -> tuple[float, float]:
     """Horizontal speed [m/s] and meteorological from-direction [deg, 0 = from north, 90 = from
     east, in [0, 360)] of an air-mass velocity [m/s, NED]."""
     n, e = float(wind_ned[0]), float(wind_ned[1])
-    # The air comes from the opposite of where it goes.
-    return math.hypot(n, e), math.degrees(math.atan2(-e, -n)) % 360.0
+    return math.hypot(n, e), float(from_direction_deg(n, e))
 
 
 def _every(mode_rate_hz: float, rate_hz: float) -> int:
@@ -56,7 +56,7 @@ def _every(mode_rate_hz: float, rate_hz: float) -> int:
 def _slice_bounds(sim: Simulation, margin_m: float) -> tuple[tuple[float, float], tuple[float, float]]:
     """North and east ranges [m] covering the plume sources and the start point, plus a margin."""
     pts = [np.asarray(sim.scenario.start.position_ned, dtype=float)[:2]]
-    plume = getattr(sim, "plume", None)
+    plume = sim.plume
     if plume is not None:
         pts += [np.asarray(s.position_ned, dtype=float)[:2] for s in plume.config.sources]
     arr = np.array(pts)
@@ -92,7 +92,7 @@ def record_simulation(
     n_series = _every(mode_rate, series_hz)
     n_slice = _every(mode_rate, slice_hz)
     n_puffs = _every(mode_rate, puffs_hz)
-    plume = getattr(sim, "plume", None)
+    plume = sim.plume
     if plume is not None:
         recorder.sources([s.position_ned for s in plume.config.sources])
         if plume.config.domain_min_ned is not None and plume.config.domain_max_ned is not None:
@@ -105,7 +105,7 @@ def record_simulation(
     last: dict[str, object] = {"mode": None, "armed": None, "crashed": False, "chem_t": None}
 
     def hook(s: Simulation) -> None:
-        k = s.tick // s.mode_div
+        k = s.tick // s.world.slow_div
         t = s.t
         pos = s.x[0:3]
         wind: np.ndarray | None = None
@@ -120,11 +120,11 @@ def record_simulation(
             speed, from_deg = wind_speed_from_deg(wind)
             recorder.wind_speed_dir(t, None, None, truth_speed=speed, truth_dir_deg=from_deg)
             recorder.rotors(t, s.x[13:17])
-        reading = getattr(s, "chem_latest", None)
+        reading = s.chem.latest if s.chem is not None else None
         if reading is not None and reading.t != last["chem_t"]:
             last["chem_t"] = reading.t
             recorder.chem(reading.t, reading.value_mg_m3)
-        pl = getattr(s, "plume", None)
+        pl = s.plume
         if pl is not None:
             if n_slice and k % n_slice == 0:
                 # The slice is at the flight altitude: the vehicle's, or the take-off
@@ -133,8 +133,9 @@ def record_simulation(
                 pts = np.column_stack([grid_xy, np.full(len(grid_xy), z)])
                 conc = np.asarray(pl.concentration(pts)).reshape(len(xs), len(ys))
                 recorder.plume_slice(t, xs, ys, conc, z)
-            if n_puffs and k % n_puffs == 0 and hasattr(pl, "puffs"):
-                recorder.puffs(t, pl.puffs)
+            puffs = s.chem.puff_array() if s.chem is not None else None
+            if n_puffs and k % n_puffs == 0 and puffs is not None:
+                recorder.puffs(t, puffs)
         fc = s.fc
         if fc.mode != last["mode"]:
             recorder.text(t, f"mode {getattr(fc.mode, 'name', fc.mode)}", "INFO")

@@ -1,34 +1,28 @@
 """Read a PX4 ULog (``.ulg``) into :class:`~review.flight.FlightData` with ``pyulog``.
 
-Topics (first instance of each; PX4 names and units, already SI and NED/FRD):
+pyulog loads only the topics the review uses (:data:`TOPICS`) into numpy columns; the topics are
+converted in :mod:`review.ulog_topics`. pyulog reads the whole file at once (no streaming), at about
+10-20 MB/s here. It prints its complaints about a damaged file ("File corruption detected ...") to
+stdout: they are captured and reported as :attr:`FlightData.warnings` (stderr of ``windseek review``),
+so that ``--json`` output stays JSON.
 
-    sensor_combined         accelerometer_m_s2[3] (specific force, FRD), gyro_rad[3]; the sample
-                            time is timestamp + accelerometer_timestamp_relative   -> imu
-    vehicle_attitude        q[4] = [w, x, y, z], body FRD -> NED                   -> attitude
-    vehicle_local_position  x, y, z, vx, vy, vz (NED)                  -> position, velocity
-    sensor_gps / vehicle_gps_position  vel_n_m_s, vel_e_m_s, vel_d_m_s -> velocity (fallback)
-    esc_status              esc[i].esc_rpm, esc_count                  -> rotor speeds
-    actuator_outputs        output[0..3] (PWM us, or 0..1)   -> rotor commands without ESC data
-    wind / wind_estimate    windspeed_north, windspeed_east  -> PX4's own wind estimate
-    vehicle_land_detected   landed                           -> in-air segments
-    vehicle_status          nav_state, arming_state          -> mode / arming text
-    debug_key_value         key "CHEM", value                -> chemical reading (mg/m^3)
-    logged messages         -> text
-
-ESC and output numbers follow PX4's motor order (quad-X by default: 1 FR, 2 RL, 3 FL, 4 RR)
-and are mapped to the project's rotor order. Times: ULog ``timestamp`` (microseconds since
-boot) in seconds.
+In-air state: ``vehicle_land_detected.landed``; without a land detector, arming
+(``vehicle_status.arming_state``); without either, the vehicle counts as never airborne.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import numpy as np
 from pyulog import ULog
 
-from review.flight import FlightData, Series, make_input, pwm_to_fraction, state_changes
-from review.tlog import MOTOR_ORDERS
+from review import ulog_topics as ut
+from review.flight import FlightData
+from review.tlog import motor_order_of
+from review.vehicle_info import PX4_VEHICLE_TYPES, mav_type_name, sw_version
 
 TOPICS = [
     "sensor_combined",
@@ -44,35 +38,107 @@ TOPICS = [
     "vehicle_status",
     "debug_key_value",
 ]
-#: PX4 vehicle_status.nav_state values -> names (vehicle_status.msg).
-NAV_STATES = {
-    0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER", 5: "AUTO_RTL", 10: "ACRO",
-    12: "DESCEND", 13: "TERMINATION", 14: "OFFBOARD", 15: "STAB", 17: "AUTO_TAKEOFF", 18: "AUTO_LAND",
-    19: "AUTO_FOLLOW_TARGET", 20: "AUTO_PRECLAND", 21: "ORBIT", 22: "AUTO_VTOL_TAKEOFF",
-}  # fmt: skip
-#: ULog logging levels ('0'..'7', syslog) -> Rerun text levels.
+#: ULog logging levels (syslog) -> Rerun text levels.
 LOG_LEVELS = {"EMERGENCY": "CRITICAL", "ALERT": "CRITICAL", "CRITICAL": "CRITICAL", "ERROR": "ERROR",
               "WARNING": "WARN", "NOTICE": "INFO", "INFO": "INFO", "DEBUG": "DEBUG"}  # fmt: skip
 
 
-def _cols(d: dict[str, np.ndarray], names: list[str]) -> np.ndarray | None:
-    """Stack columns (N, k) as float, or None when one is missing."""
-    if not all(n in d for n in names):
-        return None
-    return np.column_stack([np.asarray(d[n], dtype=float) for n in names])
+class ParserStuckError(RuntimeError):
+    """pyulog kept reading without getting through the file (not one of the errors pyulog catches)."""
 
 
-def _key_string(d: dict[str, np.ndarray], i: int) -> str:
-    """A char[] field flattened by pyulog into key[0], key[1], ... -> str."""
-    chars = []
-    k = 0
-    while f"key[{k}]" in d:
-        c = int(d[f"key[{k}]"][i])
-        if c == 0:
-            break
-        chars.append(chr(c & 0xFF))
-        k += 1
-    return "".join(chars)
+class BoundedFile:
+    """The log file for pyulog, with a bound on its read calls.
+
+    pyulog steps back over a message it finds corrupt (``seek(-2 - msg_size, 1)``, to advance by one
+    byte); when that message's payload was cut by the end of the file the seek goes back further than
+    the reads went forward, and pyulog loops forever (seen on a truncated, damaged ULog). A legitimate
+    parse makes at most two reads per 3-byte message header plus two per byte skipped while
+    resynchronizing, so ``8 * size + 100_000`` read calls is a bound that no readable file reaches.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._f = path.open("rb")
+        self._left = 8 * path.stat().st_size + 100_000
+
+    def read(self, n: int = -1) -> bytes:
+        self._left -= 1
+        if self._left < 0:
+            raise ParserStuckError("pyulog did not get through the file (a damaged or truncated log)")
+        return self._f.read(n)
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        return self._f.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+    def close(self) -> None:
+        self._f.close()
+
+
+def open_ulog(path: Path) -> tuple[ULog, list[str]]:
+    """pyulog's ULog of the review's topics, and what pyulog printed (its corruption warnings)."""
+    out = io.StringIO()
+    f = BoundedFile(path)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            ulog = ULog(f, TOPICS)  # type: ignore[arg-type]  # pyulog takes any binary file object
+    except Exception as e:  # pyulog raises plain exceptions on a bad header
+        raise ValueError(f"{path}: not a readable ULog ({e})") from e
+    finally:
+        f.close()
+    return ulog, [line.strip() for line in out.getvalue().splitlines() if line.strip()]
+
+
+def _identity(fd: FlightData, ulog: ULog, data: dict[str, ut.Topic]) -> None:
+    """Autopilot name and version (``ver_sw_release`` decoded, else the git hash), and the vehicle type."""
+    info = ulog.msg_info_dict
+    fd.family = "PX4"
+    release = info.get("ver_sw_release")
+    ver = sw_version(release) if release else ""
+    git = str(info.get("ver_sw", ""))[:8]
+    fd.autopilot = " ".join(s for s in (str(info.get("sys_name") or "PX4"), ver, f"({git})" if git else "") if s)
+    mav_type = ulog.initial_parameters.get("MAV_TYPE")
+    status = data.get("vehicle_status", {})
+    if mav_type is None and "system_type" in status and len(status["system_type"]):
+        mav_type = int(status["system_type"][0])
+    if mav_type is not None:
+        fd.vehicle_type = mav_type_name(int(mav_type))
+    elif "vehicle_type" in status and len(status["vehicle_type"]):
+        fd.vehicle_type = PX4_VEHICLE_TYPES.get(int(status["vehicle_type"][0]), "unknown")
+    if "is_vtol" in status and np.any(status["is_vtol"]) and "VTOL" not in fd.vehicle_type:
+        fd.vehicle_type = f"VTOL ({fd.vehicle_type})"
+
+
+def _file_notes(fd: FlightData, ulog: ULog, printed: list[str]) -> None:
+    if ulog.file_corruption or printed:
+        lines = list(dict.fromkeys(printed))
+        what = "; ".join(lines[:3]) + (f" (and {len(lines) - 3} more)" if len(lines) > 3 else "") or "file corruption"
+        fd.warnings.append(f"pyulog: {what}: data after the damage may be missing")
+    if ulog.dropouts:
+        fd.notes.append(f"{len(ulog.dropouts)} logger dropout(s), {sum(d.duration for d in ulog.dropouts)} ms in all")
+
+
+def _topics(fd: FlightData, data: dict[str, ut.Topic], order: tuple[int, ...], w_max: float) -> None:
+    if (d := data.get("sensor_combined")) is not None:
+        ut.imu_topic(fd, d)
+    if (d := data.get("vehicle_attitude")) is not None:
+        ut.attitude_topic(fd, d)
+    if (d := data.get("vehicle_local_position")) is not None:
+        ut.local_position_topic(fd, d)
+    if "velocity" not in fd.sources:
+        any(ut.gps_velocity_topic(fd, n, data[n]) for n in ("sensor_gps", "vehicle_gps_position") if n in data)
+    if (d := data.get("esc_status")) is not None:
+        ut.esc_topic(fd, d, order)
+    if "rotors" not in fd.sources and (d := data.get("actuator_outputs")) is not None:
+        ut.outputs_topic(fd, d, order, w_max)
+    any(ut.wind_topic(fd, n, data[n]) for n in ("wind", "wind_estimate") if n in data)
+    land = (d := data.get("vehicle_land_detected")) is not None and ut.land_topic(fd, d)
+    if (d := data.get("vehicle_status")) is not None:
+        ut.status_topic(fd, d, land_detector=land)
+    if (d := data.get("debug_key_value")) is not None:
+        ut.chem_topic(fd, d)
 
 
 def read_ulog(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float = 600.0) -> FlightData:
@@ -80,131 +146,27 @@ def read_ulog(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float 
 
     Args:
         path: the log.
-        motor_order: ``"quad-x"`` (PX4, default) or ``"windseek"`` (ESC i = rotor i);
-            ``"auto"`` means quad-x here.
+        motor_order: ``"quad-x"`` (PX4, default) or ``"windseek"`` (ESC i = rotor i); ``"auto"``
+            means quad-x here.
         w_max_rad_s: rotor speed at full actuator output [rad/s] (rotor commands from outputs).
     """
     path = Path(path)
-    if motor_order == "auto":
-        motor_order = "quad-x"
-    if motor_order not in MOTOR_ORDERS:
-        raise ValueError(f"motor_order = {motor_order!r}: allowed values are auto, {', '.join(MOTOR_ORDERS)}")
-    order = MOTOR_ORDERS[motor_order]
-    try:
-        ulog = ULog(str(path), TOPICS)
-    except Exception as e:  # pyulog raises plain exceptions on a bad header
-        raise ValueError(f"{path}: not a readable ULog ({e})") from e
-    fd = FlightData(path=path, kind="ulog")
-    sys_name = ulog.msg_info_dict.get("sys_name", "")
-    ver = ulog.msg_info_dict.get("ver_sw_release") or ulog.msg_info_dict.get("ver_sw", "")
-    fd.autopilot = " ".join(str(s) for s in (sys_name or "PX4", ver) if s != "").strip()
-    data: dict[str, dict[str, np.ndarray]] = {}
+    motor_order, order = motor_order_of("quad-x" if motor_order == "auto" else motor_order, False)
+    ulog, printed = open_ulog(path)
+    fd = FlightData(path=path, kind="ulog", size_bytes=path.stat().st_size)
+    data: dict[str, ut.Topic] = {}
     for ds in ulog.data_list:
         fd.counts[ds.name if ds.multi_id == 0 else f"{ds.name}[{ds.multi_id}]"] += len(ds.data["timestamp"])
         if ds.multi_id == 0 and ds.name not in data:
             data[ds.name] = ds.data
-    if ulog.file_corruption:
-        fd.notes.append("pyulog reports file corruption: data after it may be missing")
-    if ulog.dropouts:
-        fd.notes.append(f"{len(ulog.dropouts)} logger dropout(s), {sum(d.duration for d in ulog.dropouts)} ms in all")
-    rows = []
-
-    def t_of(d: dict[str, np.ndarray]) -> np.ndarray:
-        return np.asarray(d["timestamp"], dtype=float) * 1e-6
-
-    if (d := data.get("sensor_combined")) is not None:
-        acc = _cols(d, [f"accelerometer_m_s2[{i}]" for i in range(3)])
-        gyr = _cols(d, [f"gyro_rad[{i}]" for i in range(3)])
-        if acc is not None:
-            t = t_of(d) + np.asarray(d.get("accelerometer_timestamp_relative", 0.0), dtype=float) * 1e-6
-            for k in range(len(t)):
-                rows.append(make_input(t[k], "imu", (acc[k], None if gyr is None else gyr[k])))
-            fd.sources["imu"] = "sensor_combined"
-    if (d := data.get("vehicle_attitude")) is not None and (q := _cols(d, [f"q[{i}]" for i in range(4)])) is not None:
-        t = t_of(d)
-        rows += [make_input(t[k], "attitude", q[k]) for k in range(len(t))]
-        fd.attitude = Series(t, q, "attitude")
-        fd.sources["attitude"] = "vehicle_attitude"
-    if (d := data.get("vehicle_local_position")) is not None:
-        t = t_of(d)
-        if (p := _cols(d, ["x", "y", "z"])) is not None:
-            fd.position = Series(t, p, "position")
-            fd.sources["position"] = "vehicle_local_position"
-        if (v := _cols(d, ["vx", "vy", "vz"])) is not None:
-            ok = np.all(np.isfinite(v), axis=1)
-            if "v_xy_valid" in d:
-                ok &= np.asarray(d["v_xy_valid"]) != 0
-            rows += [make_input(t[k], "velocity", v[k]) for k in np.nonzero(ok)[0]]
-            fd.sources["velocity"] = "vehicle_local_position"
-    if "velocity" not in fd.sources:
-        for name in ("sensor_gps", "vehicle_gps_position"):
-            d = data.get(name)
-            if d is not None and (v := _cols(d, ["vel_n_m_s", "vel_e_m_s", "vel_d_m_s"])) is not None:
-                t = t_of(d)
-                ok = np.asarray(d.get("vel_ned_valid", np.ones(len(t))), dtype=float) != 0
-                rows += [make_input(t[k], "velocity", v[k]) for k in np.nonzero(ok)[0]]
-                fd.sources["velocity"] = name
-                break
-    rot_rows: list[tuple[float, np.ndarray]] = []
-    if (d := data.get("esc_status")) is not None and "esc[0].esc_rpm" in d:
-        t = t_of(d)
-        n_esc = np.asarray(d.get("esc_count", np.full(len(t), 4)), dtype=int)
-        rpm = _cols(d, [f"esc[{i}].esc_rpm" for i in range(4)])
-        if rpm is not None:
-            for k in np.nonzero(n_esc >= 4)[0]:
-                w = np.zeros(4)
-                for i, r in enumerate(order):
-                    w[r] = abs(rpm[k, i]) * (2.0 * np.pi / 60.0)
-                rot_rows.append((t[k], w))
-                rows.append(make_input(t[k], "rotors", w))
-            if rot_rows:
-                fd.sources["rotors"] = "esc_status"
-    if not rot_rows and (d := data.get("actuator_outputs")) is not None:
-        out = _cols(d, [f"output[{i}]" for i in range(4)])
-        if out is not None:
-            t = t_of(d)
-            frac = pwm_to_fraction(out)
-            for k in range(len(t)):
-                w = np.zeros(4)
-                for i, r in enumerate(order):
-                    w[r] = frac[k, i] * w_max_rad_s
-                rot_rows.append((t[k], w))
-                rows.append(make_input(t[k], "rotor_cmd", w))
-            fd.sources["rotor_cmd"] = "actuator_outputs"
-    fd.rotors = Series.from_rows(rot_rows, "rotors", 4)
-    for name in ("wind", "wind_estimate"):
-        d = data.get(name)
-        if d is not None and (w := _cols(d, ["windspeed_north", "windspeed_east"])) is not None:
-            fd.autopilot_wind = Series(t_of(d), np.column_stack([w, np.full(len(w), np.nan)]), "autopilot")
-            fd.sources["autopilot_wind"] = name
-            break
-    if (d := data.get("vehicle_land_detected")) is not None and "landed" in d:
-        t = t_of(d)
-        fd.in_air = state_changes([(float(t[k]), not bool(d["landed"][k])) for k in range(len(t))])
-        fd.sources["in_air"] = "vehicle_land_detected"
-    if (d := data.get("vehicle_status")) is not None:
-        t = t_of(d)
-        last_nav = last_arm = None
-        for k in range(len(t)):
-            if "nav_state" in d and int(d["nav_state"][k]) != last_nav:
-                last_nav = int(d["nav_state"][k])
-                fd.texts.append((float(t[k]), f"mode {NAV_STATES.get(last_nav, last_nav)}", "INFO"))
-            if "arming_state" in d and int(d["arming_state"][k]) != last_arm:
-                last_arm = int(d["arming_state"][k])
-                fd.texts.append((float(t[k]), "armed" if last_arm == 2 else "disarmed", "INFO"))
-    if (d := data.get("debug_key_value")) is not None and "value" in d:
-        t = t_of(d)
-        chem = [(float(t[k]), float(d["value"][k])) for k in range(len(t)) if _key_string(d, k) == "CHEM"]
-        fd.chem = Series.from_rows(chem, "chem")
-        if chem:
-            fd.sources["chem"] = "debug_key_value CHEM"
+    _identity(fd, ulog, data)
+    _file_notes(fd, ulog, printed)
+    _topics(fd, data, order, w_max_rad_s)
     for m in ulog.logged_messages:
         fd.texts.append((m.timestamp * 1e-6, m.message, LOG_LEVELS.get(m.log_level_str(), "INFO")))
     fd.texts.sort(key=lambda r: r[0])
-    fd.inputs = rows
-    fd.sort_inputs()
     fd.notes.append(f"motor order: {motor_order}")
     return fd
 
 
-__all__ = ["TOPICS", "read_ulog"]
+__all__ = ["TOPICS", "open_ulog", "read_ulog"]

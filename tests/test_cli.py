@@ -1,9 +1,12 @@
-"""The windseek entry point: sim --json prints one JSON object with the documented keys."""
+"""The windseek entry point: sim --json prints one JSON object with the documented keys; bad arguments
+are one-line errors before anything slow happens."""
 
 import json
 import os
 import subprocess
 import sys
+
+import pytest
 
 from windseek.cli import main
 
@@ -31,3 +34,36 @@ def test_installed_entry_point():
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["sim_time_s"] == 1.0
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["sitl", "paper-s1", "--geofence", "1,2,3"], "expected six finite numbers N,E,D,N,E,D, got 3"),
+        (["sitl", "paper-s1", "--true-wind-hz", "-1"], "must be a finite rate >= 0 Hz"),
+        (["sitl", "paper-s1", "--speed", "0"], "must be > 0"),
+    ],
+)
+def test_bad_sitl_arguments_are_refused_by_the_parser(argv: list[str], says: str, capsys) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2 and says in capsys.readouterr().err
+
+
+def test_bad_values_fail_fast_with_one_line(tmp_path, capsys) -> None:
+    """Errors that argparse cannot see are still reported before any link opens or vehicle is waited for."""
+    (tmp_path / "binary.toml").write_bytes(b"\x00\xff\xfe")
+    (tmp_path / "noname.toml").write_text('description = "no name"\n')
+    cases = [
+        (["sitl", "paper-s1", "--no-udp", "--serial", "/dev/null:abc"], "baud rate 'abc' is not a number"),
+        (["sitl", "paper-s1", "--no-udp", "--serial", "/dev/null:1234"], "baud rate 1234: allowed values"),
+        (["mission", "--connect", "udpin://127.0.0.1:9", "--strategy", "surge-cast", "--altitude", "-5"],
+         "--altitude -5: the search altitude above home must be in"),
+        (["sim", str(tmp_path / "binary.toml")], "binary.toml: not a TOML text file"),
+        (["sim", str(tmp_path / "noname.toml")], "name: required"),
+    ]  # fmt: skip
+    for argv, says in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        # (The altitude is refused before any connection: connecting would end in "no autopilot heartbeat".)
+        assert says in err and len(err.splitlines()) == 1, (argv, err)

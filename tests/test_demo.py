@@ -29,6 +29,8 @@ from link_support import free_port, running, udp_to, wait_until
 from sitl.link.wire import Forwarder
 from wire.dialect import mavlink as mav
 
+pytestmark = pytest.mark.e2e
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

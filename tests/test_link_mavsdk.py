@@ -24,6 +24,8 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.plugins.offboard import PositionNedYaw, VelocityNedYaw  # noqa: E402
 from mavsdk.plugins.telemetry import FlightMode, LandedState  # noqa: E402
 
+pytestmark = pytest.mark.e2e
+
 
 def _gcs() -> Mavsdk:
     return Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))

@@ -26,6 +26,8 @@ from mavsdk.asyncio.plugins.mission import MissionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.plugins.mission import MissionItem, MissionPlan  # noqa: E402
 
+pytestmark = pytest.mark.e2e
+
 PLUME = {
     "model": "gaussian",
     "sources": [{"position_ned": [12.0, 0.0, -3.0], "rate_g_s": 5.0}],

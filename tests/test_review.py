@@ -236,7 +236,7 @@ def test_tlog_without_imu_and_esc_still_writes_trajectory(tlogs: dict[str, Path]
 def test_tlog_without_esc_runs_on_actuator_outputs(tlogs: dict[str, Path]) -> None:
     s = review(tlogs["no_esc"]).summary
     assert s["sources"]["rotor_cmd"] in ("SERVO_OUTPUT_RAW", "ACTUATOR_OUTPUT_STATUS")
-    assert any("estimator ran on rotor speeds implied by the actuator outputs" in m for m in s["missing"])
+    assert any("the estimator uses rotor speeds implied by the actuator outputs" in m for m in s["missing"])
     assert s["wind_estimated"]
     assert s["rmse_vs_truth_ms"]["horizontal"] < 2.5, s  # 10 Hz commands through the motor lag: rougher
 
@@ -395,7 +395,8 @@ def test_ulog_to_rrd(tmp_path: Path) -> None:
 def test_ardupilot_style_tlog_with_gcs_traffic_and_garbage(tmp_path: Path) -> None:
     """An ArduPilot-style tlog (ArduPilot's WIND, SCALED_IMU, GLOBAL_POSITION_INT, a ground station's own
     heartbeats, MAVLink 1 and 2 frames, junk between records, a truncated last record): the reader
-    keeps the vehicle's messages, decodes WIND by hand, and says that wind cannot be estimated."""
+    keeps the vehicle's messages, decodes WIND with the ardupilotmega dialect, and says that wind cannot be
+    estimated."""
     from pymavlink.dialects.v10 import ardupilotmega as ap1
     from pymavlink.dialects.v20 import ardupilotmega as ap2
 
@@ -548,7 +549,9 @@ def test_demo_style_sitl_tlog(tmp_path: Path) -> None:
     assert s["sources"]["in_air"] == "EXTENDED_SYS_STATE"
     # time: one take-off and one landing, on the boot clock, within the log
     assert s["airborne_segments"] == 1
-    assert 10.0 < s["airborne_s"] <= s["duration_s"] < 60.0, s
+    # within the log (the PING clock once made it 4149.7 s in 114 s); the log's length itself depends on how
+    # long the loaded machine took to start the SITL (its clock runs from boot at speed 4), so only a loose cap
+    assert 10.0 < s["airborne_s"] <= s["duration_s"] < 600.0, s
     (a, b), = fd.airborne_segments()
     assert b < fd.time_range[1] - 0.1  # the landing was seen before the log ended
     assert [x for _, x, _ in fd.texts if x in ("armed", "disarmed")] == ["disarmed", "armed", "disarmed"]

@@ -86,8 +86,8 @@ def test_seed_reproducibility() -> None:
 def test_no_turbulence_field_is_steady() -> None:
     wf = WindField(SteadyWind((1.0, -2.0, 0.5)), None, seed=0)
     assert wf.turbulence_series is None
-    args = wf.kernel_args()
-    assert args[5] is False and args[-1].shape == (0, 3)
+    k = wf.kernel()
+    assert k.turb_on is False and k.turb_uvw.shape == (0, 3)
     assert np.array_equal(wf.velocity(5.0, np.array([3.0, 1.0, -7.0])), [1.0, -2.0, 0.5])
 
 
@@ -190,11 +190,11 @@ def test_kernel_callable_from_user_njit() -> None:
     wf = _short_field(2)
 
     @njit
-    def sample(t: float, pos: np.ndarray, *args: object) -> np.ndarray:
-        return wind_velocity(t, pos, *args)
+    def sample(t: float, pos: np.ndarray, w: object) -> np.ndarray:
+        return wind_velocity(t, pos, w)
 
     p = np.array([1.0, 2.0, -3.0])
-    assert np.array_equal(sample(4.0, p, *wf.kernel_args()), wf.velocity(4.0, p))
+    assert np.array_equal(sample(4.0, p, wf.kernel()), wf.velocity(4.0, p))
 
 
 def test_intensity_helpers() -> None:

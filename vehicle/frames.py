@@ -109,3 +109,31 @@ def tilt_angle(q: np.ndarray) -> float:
     """Angle between the body z axis and the world down axis, rad."""
     c = 1 - 2 * (q[1] * q[1] + q[2] * q[2])
     return math.acos(min(1.0, max(-1.0, c)))
+
+
+# --------------------------------------------------------------------------- wind directions
+# Wind is the air-mass velocity in NED; a direction is where the wind comes FROM
+# (meteorological: 0 = from north, 90 = from east). These two are the only place that rule
+# is written down in code.
+
+
+def from_direction_deg(wind_n: float | np.ndarray, wind_e: float | np.ndarray) -> float | np.ndarray:
+    """FROM-direction (deg, [0, 360)) of an air-mass velocity with north/east components (m/s)."""
+    return np.mod(np.degrees(np.arctan2(-np.asarray(wind_e), -np.asarray(wind_n))), 360.0)
+
+
+def velocity_from_speed_direction(speed_ms: float, from_deg: float, vertical_ms: float = 0.0
+                                  ) -> tuple[float, float, float]:  # fmt: skip
+    """Air-mass velocity (NED, m/s) of a wind of ``speed_ms`` blowing *from* ``from_deg`` (deg).
+
+    The air moves toward ``from_deg + 180``; ``vertical_ms`` is the NED down component (a
+    positive value is a downdraft). Example: 10 m/s from north -> ``(-10, 0, 0)``.
+    ValueError on a non-finite or negative speed, a non-finite angle or vertical component.
+    """
+    for value, name, ok in ((speed_ms, "speed_ms", speed_ms >= 0), (from_deg, "from_deg", True),
+                            (vertical_ms, "vertical_ms", True)):  # fmt: skip
+        if not (math.isfinite(float(value)) and ok):
+            raise ValueError(f"{name} must be a finite number{' >= 0 (m/s)' if name == 'speed_ms' else ''}, "
+                             f"got {value!r}")  # fmt: skip
+    rad = math.radians(float(from_deg))
+    return (-float(speed_ms) * math.cos(rad), -float(speed_ms) * math.sin(rad), float(vertical_ms))

@@ -125,10 +125,8 @@ class VehicleParams:
             for k, v in self.coefficients.items()
         }
         mass = self.mass_kg * (1.0 + rng.uniform(-mass_error, mass_error))
-        inertia = tuple(
-            float(i * (1.0 + rng.uniform(-inertia_error, inertia_error)))
-            for i in self.inertia_kg_m2
-        )
+        ix, iy, iz = (float(i * (1.0 + rng.uniform(-inertia_error, inertia_error))) for i in self.inertia_kg_m2)
+        inertia = (ix, iy, iz)
         return replace(self, coefficients=coefs, mass_kg=mass, inertia_kg_m2=inertia)
 
     def with_overrides(self, **kwargs: object) -> VehicleParams:

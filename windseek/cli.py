@@ -11,6 +11,8 @@ import argparse
 import importlib
 import sys
 
+from windseek import numba_cache
+
 #: Subcommand modules, in the order shown by ``windseek --help``.
 COMMANDS = [
     "windseek.cmd_sim",
@@ -26,6 +28,7 @@ COMMANDS = [
 
 
 def build_parser() -> argparse.ArgumentParser:
+    numba_cache.configure()  # before any kernel module is imported by a subcommand
     parser = argparse.ArgumentParser(
         prog="windseek",
         description="SITL harness for wind-aware chemical source localization with small multirotors.",

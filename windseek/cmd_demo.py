@@ -31,17 +31,14 @@ import argparse
 import contextlib
 import json
 import math
-import os
-import signal
-import socket
-import subprocess
 import sys
-import threading
 import time
-from collections import deque
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
+
+from windseek.demo_parts import Observer, Proc, free_udp_port
 
 SUCCESS_RADIUS_M = 5.0
 
@@ -70,161 +67,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def free_udp_port() -> int:
-    """An ephemeral local UDP port that is free now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-class Proc:
-    """One child process: its output goes to a log file and a tail kept for error messages."""
-
-    def __init__(self, name: str, cmd: list[str], log_path: Path, on_line: Any = None,
-                 stdout_path: Path | None = None) -> None:  # fmt: skip
-        self.name = name
-        self.cmd = cmd
-        self.log_path = log_path
-        self.tail: deque[str] = deque(maxlen=20)
-        self.on_line = on_line
-        self._log: TextIO = open(log_path, "w")  # noqa: SIM115 - closed in close()
-        self._stdout: TextIO | None = open(stdout_path, "w") if stdout_path else None  # noqa: SIM115
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self.popen = subprocess.Popen(cmd, stdout=self._stdout or subprocess.PIPE,
-                                      stderr=subprocess.PIPE if self._stdout else subprocess.STDOUT,
-                                      text=True, env=env, start_new_session=True)  # fmt: skip
-        self.first_line = threading.Event()
-        self._reader = threading.Thread(target=self._read, name=f"read-{name}", daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        stream = self.popen.stderr if self._stdout else self.popen.stdout
-        for line in stream:
-            line = line.rstrip("\n")
-            self._log.write(line + "\n")
-            self._log.flush()
-            self.tail.append(line)
-            self.first_line.set()
-            if self.on_line is not None:
-                with contextlib.suppress(Exception):  # a display problem must not stop the reader
-                    self.on_line(line)
-
-    def wait_for(self, pred: Any, timeout_s: float) -> bool:
-        """Wait until ``pred()`` or the process exits or the timeout; True if ``pred()``."""
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            if pred():
-                return True
-            if self.popen.poll() is not None:
-                return bool(pred())
-            time.sleep(0.1)
-        return False
-
-    def stop(self, timeout_s: float = 15.0) -> int | None:
-        """SIGTERM (clean shutdown: links closed, logs written), then SIGKILL after ``timeout_s``."""
-        if self.popen.poll() is None:
-            self.popen.send_signal(signal.SIGTERM)
-            try:
-                self.popen.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait(5.0)
-        self._reader.join(timeout=5.0)
-        return self.popen.returncode
-
-    def close(self) -> None:
-        self._log.close()
-        if self._stdout is not None:
-            self._stdout.close()
-
-    def failure(self) -> str:
-        lines = "\n".join(f"    {x}" for x in list(self.tail)[-8:])
-        return f"{self.name} exited with status {self.popen.returncode}; its last lines ({self.log_path}):\n{lines}"
-
-
-class Observer(threading.Thread):
-    """A passive UDP peer of the SITL (it never sends): follows the vehicle for the progress display."""
-
-    def __init__(self) -> None:
-        super().__init__(name="demo-observer", daemon=True)
-        from wire.dialect import mavlink as mav
-
-        self.mav = mav
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.2)
-        self.port = self.sock.getsockname()[1]
-        self.parser = mav.MAVLink(None)
-        self.parser.robust_parsing = True
-        self.sitl_addr: tuple[str, int] | None = None
-        self.t = 0.0
-        self.pos = [0.0, 0.0, 0.0]
-        self.armed = False
-        self.mode = ""
-        self.chem = 0.0
-        self.wind: list[float] | None = None
-        self.wind_covs = 0
-        self.t_arm: float | None = None
-        self._halt = threading.Event()
-
-    def run(self) -> None:
-        while not self._halt.is_set():
-            try:
-                data, addr = self.sock.recvfrom(65536)
-            except (TimeoutError, OSError):
-                continue
-            try:
-                msgs = self.parser.parse_buffer(data) or []
-            except Exception:  # noqa: BLE001
-                continue
-            for m in msgs:
-                self._on(m, addr)
-
-    def _on(self, m: Any, addr: tuple[str, int]) -> None:
-        mtype = m.get_type()
-        if m.get_srcSystem() == 1 and m.get_srcComponent() == 1:
-            self.sitl_addr = addr
-        if mtype == "LOCAL_POSITION_NED":
-            self.t = m.time_boot_ms * 1e-3
-            self.pos = [m.x, m.y, m.z]
-        elif mtype == "HEARTBEAT" and m.get_srcComponent() == 1:
-            from wire.px4_modes import name as px4_mode_name
-
-            armed = bool(m.base_mode & 128)
-            if armed and not self.armed:
-                self.t_arm = self.t
-            self.armed = armed
-            self.mode = px4_mode_name(m.custom_mode)
-        elif mtype == "NAMED_VALUE_FLOAT" and str(m.name).rstrip("\x00") == "CHEM":
-            self.chem = float(m.value)
-        elif mtype == "WIND_COV":
-            self.wind = [m.wind_x, m.wind_y, m.wind_z]
-            self.wind_covs += 1
-
-    def status(self) -> str:
-        from recording.sim_hook import wind_speed_from_deg
-
-        n, e, d = self.pos
-        s = f"t {self.t:6.1f} s  {self.mode or '-':12s} N {n:+6.1f} E {e:+6.1f} alt {-d:4.1f} m  chem {self.chem:6.2f}"
-        if self.wind is not None:
-            sp, fr = wind_speed_from_deg(self.wind)
-            s += f"  wind est {sp:4.1f} m/s from {fr:3.0f} deg"
-        return s
-
-    def close(self) -> None:
-        self._halt.set()
-        self.join(timeout=2.0)
-        self.sock.close()
-
-
 def _windseek(*args: str) -> list[str]:
     return [sys.executable, "-m", "windseek.cli", *args]
 
 
-def run(args: argparse.Namespace) -> int:
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+@dataclass
+class _Plan:
+    """A checked demo: the scenario, seed, time limit, log files and the geofence box."""
 
+    scenario: str
+    name: str
+    strategy: str
+    seed: int
+    speed: float
+    time_limit: float
+    imu_average: int
+    wall_limit: float
+    base: Path
+    files: dict[str, Path]
+    truth_path: Path
+    fence: str
+
+
+def _plan(args: argparse.Namespace) -> _Plan:
     from mission.safety import SafetyLimits
     from mission.strategies import STRATEGIES
     from sitl.scenario import load_scenario
@@ -234,114 +99,148 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.speed) and args.speed > 0):
         raise ValueError(f"--speed {args.speed}: must be > 0")
     sc = load_scenario(args.scenario)  # fails early, with the scenario's own message
-    seed = sc.seed if args.seed is None else int(args.seed)
     limits = SafetyLimits()
-    time_limit = limits.time_limit_s if args.time_limit is None else float(args.time_limit)
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     logs = Path(args.logs)
     logs.mkdir(parents=True, exist_ok=True)
-    base = logs / f"{stamp}-{sc.name}-{args.strategy}"
-    files = {k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json")}
-    truth_path = Path(f"{base}.truth.json")
-    console = Console(stderr=True)
-    live = console.is_terminal
+    base = logs / f"{datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')}-{sc.name}-{args.strategy}"
+    return _Plan(
+        scenario=args.scenario, name=sc.name, strategy=args.strategy,
+        seed=sc.seed if args.seed is None else int(args.seed),
+        speed=float(args.speed), time_limit=limits.time_limit_s if args.time_limit is None else float(args.time_limit),
+        imu_average=int(args.imu_average), wall_limit=float(args.wall_limit), base=base,
+        files={k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json")}, truth_path=Path(f"{base}.truth.json"),
+        fence=",".join(f"{v:g}" for v in (*limits.box_min_ned, *limits.box_max_ned)),
+    )  # fmt: skip
 
-    def note(text: str) -> None:
-        console.print(text, highlight=False, markup=False)
 
-    p_est, p_mis = free_udp_port(), free_udp_port()
-    obs = Observer()
-    obs.start()
-    fence = ",".join(f"{v:g}" for v in (*limits.box_min_ned, *limits.box_max_ned))
-    procs: list[Proc] = []
-    wall0 = time.monotonic()
+class _Demo:
+    """The three processes of one demo, started and watched in order (see the module docstring)."""
 
-    def on_mission_line(line: str) -> None:
-        if line.startswith("mission: "):  # not MAVSDK's own debug lines, nor the autopilot's echoed STATUSTEXT
-            note(f"  {line}")
+    def __init__(self, plan: _Plan, console: Any) -> None:
+        self.plan = plan
+        self.console = console
+        self.live = bool(console.is_terminal)
+        self.obs = Observer()
+        self.obs.start()
+        self.procs: list[Proc] = []
+        self.wall0 = time.monotonic()
+        self.p_est, self.p_mis = free_udp_port(), free_udp_port()
 
-    note(f"windseek demo: {sc.name} / {args.strategy} / seed {seed} / speed {args.speed:g}; logs {base}.*")
-    try:
-        sitl = Proc("sitl", _windseek("sitl", args.scenario, "--speed", f"{args.speed:g}", "--seed", str(seed),
-                                      "--udp-bind", "127.0.0.1:0",
-                                      "--udp", f"127.0.0.1:{p_est}", f"127.0.0.1:{p_mis}", f"127.0.0.1:{obs.port}",
-                                      "--forward", "--tlog", str(files["tlog"]), "--rrd", str(files["rrd"]),
-                                      "--rrd-strategy", args.strategy, f"--geofence={fence}",
-                                      "--exit-summary", str(truth_path)),
-                    Path(f"{base}.sitl.log"))  # fmt: skip
-        procs.append(sitl)
-        est = Proc("estimator", _windseek("estimator", "--connect", f"udpin://127.0.0.1:{p_est}",
-                                          "--imu-average", str(args.imu_average), "--progress-every", "5",
-                                          "--link-timeout", "30"),
-                   Path(f"{base}.estimator.log"))  # fmt: skip
-        procs.append(est)
+    def note(self, text: str) -> None:
+        self.console.print(text, highlight=False, markup=False)
+
+    def _start(self, name: str, argv: list[str], **kw: Any) -> Proc:
+        proc = Proc(name, _windseek(*argv), Path(f"{self.plan.base}.{name}.log"), **kw)
+        self.procs.append(proc)
+        return proc
+
+    def fly(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Run SITL, estimator and mission; (the mission's result, the SITL's truth summary)."""
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        pl, obs = self.plan, self.obs
+        sitl = self._start("sitl", ["sitl", pl.scenario, "--speed", f"{pl.speed:g}", "--seed", str(pl.seed),
+                                    "--udp-bind", "127.0.0.1:0", "--udp", f"127.0.0.1:{self.p_est}",
+                                    f"127.0.0.1:{self.p_mis}", f"127.0.0.1:{obs.port}", "--forward",
+                                    "--tlog", str(pl.files["tlog"]), "--rrd", str(pl.files["rrd"]),
+                                    "--rrd-strategy", pl.strategy, f"--geofence={pl.fence}",
+                                    "--exit-summary", str(pl.truth_path)])  # fmt: skip
+        est = self._start("estimator", ["estimator", "--connect", f"udpin://127.0.0.1:{self.p_est}",
+                                        "--imu-average", str(pl.imu_average), "--progress-every", "5",
+                                        "--link-timeout", "30"])  # fmt: skip
         cols = (TextColumn("{task.description}"), BarColumn(bar_width=24), TextColumn("{task.fields[status]}"),
                 TimeElapsedColumn())  # fmt: skip
-        with Progress(*cols, console=console, transient=False, disable=not live) as bar:
-            task = bar.add_task("starting", total=time_limit, status="")
+        with Progress(*cols, console=self.console, transient=False, disable=not self.live) as bar:
+            task = bar.add_task("starting", total=pl.time_limit, status="")
 
             def show(phase: str) -> None:
-                done = 0.0 if obs.t_arm is None else min(time_limit, obs.t - obs.t_arm)
+                done = 0.0 if obs.t_arm is None else min(pl.time_limit, obs.t - obs.t_arm)
                 bar.update(task, description=phase, completed=done, status=obs.status())
 
             # 1. the SITL streams (its clock runs from here: the vehicle waits on the ground)
             show("starting the SITL (first run: numba compiles for ~20 s)")
             if not sitl.wait_for(lambda: obs.sitl_addr is not None, 120.0):
                 raise _FailedError(sitl, "the SITL did not start streaming within 120 s")
-            note(f"  SITL streaming ({sitl.tail[0] if sitl.tail else ''})")
+            self.note(f"  SITL streaming ({sitl.tail[0] if sitl.tail else ''})")
             # 2. the estimator receives its inputs (it publishes WIND_COV once the vehicle is in the air)
             show("waiting for the estimator")
             if not est.wait_for(lambda: any("inputs:" in x for x in est.tail), 150.0):
                 raise _FailedError(est, "the estimator did not receive its inputs within 150 s")
-            note(f"  estimator ready ({next(x for x in est.tail if 'inputs:' in x)})")
+            self.note(f"  estimator ready ({next(x for x in est.tail if 'inputs:' in x)})")
             # 3. the mission
-            mis_cmd = _windseek("mission", "--connect", f"udpin://127.0.0.1:{p_mis}", "--strategy", args.strategy,
-                                "--wind", "mavlink", "--speed-hint", f"{args.speed:g}", "--seed", str(seed),
-                                "--time-limit", f"{time_limit:g}", "--json")  # fmt: skip
-            mis = Proc("mission", mis_cmd, Path(f"{base}.mission.log"), on_line=on_mission_line,
-                       stdout_path=Path(f"{base}.mission.json"))  # fmt: skip
-            procs.append(mis)
-            last_line = time.monotonic()
-            while mis.popen.poll() is None:
-                if time.monotonic() - wall0 > args.wall_limit:
-                    raise _FailedError(mis, f"the mission did not end within --wall-limit {args.wall_limit:g} s")
-                for p in (sitl, est):
-                    if p.popen.poll() is not None:
-                        raise _FailedError(p, f"{p.name} stopped during the mission")
-                phase = "searching" if obs.mode == "OFFBOARD" else ("flying" if obs.armed else "mission")
-                show(phase)
-                if not live and time.monotonic() - last_line > 10.0:
-                    last_line = time.monotonic()
-                    note(f"  [{time.monotonic() - wall0:5.0f} s] {obs.status()}")
-                time.sleep(0.2)
-            show("mission ended")
+            mis = self._mission(show, sitl, est)
+        return self._collect(mis, sitl, est)
+
+    def _mission(self, show: Any, sitl: Proc, est: Proc) -> Proc:
+        pl, obs = self.plan, self.obs
+
+        def on_line(line: str) -> None:
+            if line.startswith("mission: "):  # not MAVSDK's debug lines, nor the autopilot's echoed STATUSTEXT
+                self.note(f"  {line}")
+
+        mis = self._start("mission", ["mission", "--connect", f"udpin://127.0.0.1:{self.p_mis}", "--strategy",
+                                      pl.strategy, "--wind", "mavlink", "--speed-hint", f"{pl.speed:g}", "--seed",
+                                      str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json"],
+                          on_line=on_line, stdout_path=Path(f"{pl.base}.mission.json"))  # fmt: skip
+        last_line = time.monotonic()
+        while mis.popen.poll() is None:
+            if time.monotonic() - self.wall0 > pl.wall_limit:
+                raise _FailedError(mis, f"the mission did not end within --wall-limit {pl.wall_limit:g} s")
+            for p in (sitl, est):
+                if p.popen.poll() is not None:
+                    raise _FailedError(p, f"{p.name} stopped during the mission")
+            show("searching" if obs.mode == "OFFBOARD" else ("flying" if obs.armed else "mission"))
+            if not self.live and time.monotonic() - last_line > 10.0:
+                last_line = time.monotonic()
+                self.note(f"  [{time.monotonic() - self.wall0:5.0f} s] {obs.status()}")
+            time.sleep(0.2)
+        show("mission ended")
+        return mis
+
+    def _collect(self, mis: Proc, sitl: Proc, est: Proc) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Stop the processes in order (they close their links and write their logs) and read the results."""
         mis.stop()
-        mission = _read_json(Path(f"{base}.mission.json"))
+        mission = _read_json(Path(f"{self.plan.base}.mission.json"))
         if mission is None:
             raise _FailedError(mis, "the mission printed no result")
         est.stop()
         rc_sitl = sitl.stop()
-        truth = _read_json(truth_path)
+        truth = _read_json(self.plan.truth_path)
         if truth is None:
             raise _FailedError(sitl, f"the SITL wrote no exit summary (status {rc_sitl})")
-    except _FailedError as f:
-        for p in procs:
-            p.stop(5.0)
-        note(f"windseek demo: error: {f.why}")
-        note(f.proc.failure())
-        return 2
-    finally:
-        for p in procs:
+        return mission, truth
+
+    def close(self) -> None:
+        for p in self.procs:
             if p.popen.poll() is None:
                 p.stop(5.0)
             p.close()
-        obs.close()
-    wall_s = time.monotonic() - wall0
-    summary = make_summary(sc.name, args.strategy, seed, args.speed, mission, truth, wall_s, files)
-    files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+        self.obs.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    plan = _plan(args)
+    demo = _Demo(plan, Console(stderr=True))
+    demo.note(f"windseek demo: {plan.name} / {plan.strategy} / seed {plan.seed} / speed {plan.speed:g}; "
+              f"logs {plan.base}.*")  # fmt: skip
+    try:
+        mission, truth = demo.fly()
+    except _FailedError as f:
+        for p in demo.procs:
+            p.stop(5.0)
+        demo.note(f"windseek demo: error: {f.why}")
+        demo.note(f.proc.failure())
+        return 2
+    finally:
+        demo.close()
+    summary = make_summary(plan.name, plan.strategy, plan.seed, plan.speed, mission, truth,
+                           time.monotonic() - demo.wall0, plan.files)  # fmt: skip
+    plan.files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     with contextlib.suppress(OSError):
-        truth_path.unlink()
-    print_summary(summary, note)
+        plan.truth_path.unlink()
+    print_summary(summary, demo.note)
     if args.json:
         print(json.dumps(summary, allow_nan=False), flush=True)
     return 0 if summary["found"] else 1

@@ -18,6 +18,7 @@ from dataclasses import replace
 
 from mission.safety import SafetyLimits
 from mission.strategies import STRATEGIES
+from mission.wind_modes import LIVE_WIND_MODES
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -34,7 +35,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="MAVSDK connection: udpin://0.0.0.0:14540, udpout://HOST:PORT, tcpout://HOST:PORT, "
                    "serial:///dev/ttyUSB0:57600")
     p.add_argument("--strategy", required=True, choices=sorted(STRATEGIES), help="search strategy")
-    p.add_argument("--wind", default="estimated", choices=("estimated", "mavlink", "none"),
+    p.add_argument("--wind", default="estimated", choices=LIVE_WIND_MODES,
                    help="wind information: the live UKF on the telemetry (default), WIND_COV from the network "
                    "(mavlink), or none")
     p.add_argument("--params", default=None, help="strategy file (TOML with a [strategy] table)")
@@ -66,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
         lo, hi = SafetyLimits.box_from_text(args.geofence)
         limits = replace(limits, box_min_ned=lo, box_max_ned=hi)
     limits.validate()
+    alt = args.altitude
+    if alt is not None and not (math.isfinite(alt) and 0.0 < alt <= limits.max_altitude_m):
+        raise ValueError(f"--altitude {args.altitude:g}: the search altitude above home must be in "
+                         f"(0, {limits.max_altitude_m:g}] m (--max-altitude)")  # fmt: skip
     out = sys.stderr if args.json else sys.stdout
 
     def say(line: str) -> None:

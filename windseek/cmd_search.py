@@ -7,7 +7,7 @@ import json
 import math
 
 from mission.strategies import STRATEGIES
-from mission.wind_source import WIND_MODES
+from mission.wind_modes import INPROCESS_WIND_MODES
 from wire.jsonsafe import json_safe
 
 
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="built-in scenario name (e.g. open-field) or path to a scenario .toml")
     p.add_argument("--strategy", required=True, choices=sorted(STRATEGIES), help="search strategy")
-    p.add_argument("--wind", default="estimated", choices=WIND_MODES,
+    p.add_argument("--wind", default="estimated", choices=INPROCESS_WIND_MODES,
                    help="wind information: the estimator's (default), the simulator's true mean (oracle, "
                    "comparison only) or none (pure chemotaxis)")
     p.add_argument("--trials", type=int, default=10, help="number of trials (default 10)")

@@ -10,16 +10,48 @@ SIGTERM and then closes every link.
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 
 from sitl.link import SerialTransport, SitlLink, TcpServerTransport, UdpTransport
-from sitl.link.transports import parse_host_port, parse_serial
+from sitl.link.transports import Transport, parse_host_port, parse_serial
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
 from wire.dialect import mavlink
 
 DEFAULT_UDP_PEERS = ["127.0.0.1:14540", "127.0.0.1:14550"]
+
+
+def _rate_hz(text: str) -> float:
+    """A rate >= 0 Hz (argparse type): '-1', 'nan' and 'inf' are errors."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (Hz)") from None
+    if not (math.isfinite(v) and v >= 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r}: must be a finite rate >= 0 Hz")
+    return v
+
+
+def _speed(text: str) -> float:
+    """A speed factor > 0 (argparse type)."""
+    v = _rate_hz(text)
+    if v <= 0.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be > 0")
+    return v
+
+
+def _box(text: str) -> tuple[list[float], list[float]]:
+    """``N,E,D,N,E,D`` (two opposite corners of a box, m NED) as (min corner, max corner)."""
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected six numbers N,E,D,N,E,D in metres") from None
+    if len(v) != 6 or not all(math.isfinite(x) for x in v):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected six finite numbers N,E,D,N,E,D, got {len(v)}")
+    pairs = list(zip(v[:3], v[3:], strict=True))
+    return [min(a, b) for a, b in pairs], [max(a, b) for a, b in pairs]
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "like a PX4 autopilot: system 1, component 1.",
     )
     p.add_argument("scenario", help="built-in scenario name or path to a scenario .toml")
-    p.add_argument("--speed", type=float, default=1.0, help="simulation seconds per wall-clock second (default 1)")
+    p.add_argument("--speed", type=_speed, default=1.0, help="simulation seconds per wall-clock second (default 1)")
     p.add_argument("--udp", action="extend", nargs="+", metavar="HOST:PORT",
                    help="UDP peers to stream to (one or more, repeatable; default 127.0.0.1:14540 127.0.0.1:14550)")
     p.add_argument("--udp-bind", default="0.0.0.0:0", metavar="HOST:PORT",
@@ -39,7 +71,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tcp", type=int, metavar="PORT", help="also serve MAVLink on a TCP server port")
     p.add_argument("--serial", metavar="DEV[:BAUD]", help="also serve MAVLink on a serial device (default 57600 baud)")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
-    p.add_argument("--true-wind-hz", type=float, default=5.0,
+    p.add_argument("--true-wind-hz", type=_rate_hz, default=5.0,
                    help="rate of the simulation-only TRUEWN/TRUEWE/TRUEWD values (0 = off)")
     p.add_argument("--hil-decimation", type=int, default=1, metavar="N",
                    help="send HIL_SENSOR for every N-th IMU sample (default 1: the IMU rate)")
@@ -50,7 +82,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--rrd", metavar="PATH", help="write a Rerun recording: the simulation's truth plus the "
                    "WIND_COV estimates, mission status and declared source that arrive on the wire")
     g.add_argument("--rrd-strategy", metavar="NAME", default=None, help="strategy name stored in the recording")
-    g.add_argument("--geofence", metavar="N,E,D,N,E,D", default=None,
+    g.add_argument("--geofence", metavar="N,E,D,N,E,D", default=None, type=_box,
                    help="geofence box corners (m, NED) drawn in the recording (the mission's box)")
     g.add_argument("--forward", action="store_true", help="forward frames not addressed to the autopilot to the "
                    "other links and peers (PX4 MAV_X_FORWARD), e.g. an estimator's WIND_COV to the mission")
@@ -60,23 +92,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def build(args: argparse.Namespace) -> SitlLink:
-    """Scenario, simulation, transports and link from the parsed arguments."""
+    """Scenario, simulation, transports and link from the parsed arguments; every argument is
+    checked before anything slow (the simulation's first build compiles its kernels) or open."""
+    peers = [parse_host_port(x) for x in (args.udp or DEFAULT_UDP_PEERS)] if not args.no_udp else []
+    bind = parse_host_port(args.udp_bind, "0.0.0.0")
+    serial = parse_serial(args.serial) if args.serial else None
+    if args.no_udp and args.tcp is None and serial is None:
+        raise ValueError("no link: give --udp, --tcp or --serial (or drop --no-udp)")
+    if args.hil_decimation < 1:
+        raise ValueError(f"--hil-decimation {args.hil_decimation}: must be an integer >= 1")
     sc = load_scenario(args.scenario)
     sim = Simulation(sc, seed=args.seed, autostart_route=False)
-    transports = []
+    transports: list[Transport] = []
     try:
         if not args.no_udp:
-            peers = [parse_host_port(x) for x in (args.udp or DEFAULT_UDP_PEERS)]
-            transports.append(UdpTransport(peers, parse_host_port(args.udp_bind, "0.0.0.0")))
+            transports.append(UdpTransport(peers, bind))
         if args.tcp is not None:
             transports.append(TcpServerTransport(args.tcp))
-        if args.serial:
-            dev, baud = parse_serial(args.serial)
-            transports.append(SerialTransport(dev, baud))
-        if not transports:
-            raise ValueError("no link: give --udp, --tcp or --serial (or drop --no-udp)")
-        if args.hil_decimation < 1:
-            raise ValueError(f"--hil-decimation {args.hil_decimation}: must be an integer >= 1")
+        if serial is not None:
+            transports.append(SerialTransport(*serial))
         link = SitlLink(sim, transports, speed=args.speed, true_wind_hz=args.true_wind_hz)
         imu_hz = sc.sensors.imu.rate_hz
         link.streams.set_interval(mavlink.MAVLINK_MSG_ID_HIL_SENSOR, 1e6 * args.hil_decimation / imu_hz, 0.0)
@@ -97,13 +131,7 @@ def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
     if getattr(args, "forward", False):
         Forwarder(link)
     if getattr(args, "rrd", None):
-        fence = None
-        if args.geofence:
-            v = [float(x) for x in args.geofence.split(",")]
-            if len(v) != 6:
-                raise ValueError(f"--geofence {args.geofence!r}: expected six numbers N,E,D,N,E,D")
-            fence = (v[:3], v[3:])
-        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=fence))
+        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=args.geofence))
     if getattr(args, "exit_summary", None):
         out.append(TruthSummary(link, args.exit_summary))
     return out

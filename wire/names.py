@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from typing import Any
 
 from wire.dialect import mavlink as mav
 
@@ -56,7 +57,7 @@ def state_fields(state: str) -> tuple[str, str]:
     return "STATUSTEXT", json.dumps({"severity": int(mav.MAV_SEVERITY_INFO), "text": text, "id": 0, "chunk_seq": 0})
 
 
-async def publish(direct: object, pairs: list[tuple[str, str]]) -> None:
+async def publish(direct: Any, pairs: list[tuple[str, str]]) -> None:
     """Send (message_name, fields_json) pairs through a MAVSDK ``MavlinkDirectAsync`` plugin, e.g.
     ``await publish(direct, [state_fields("surge")])`` on a state change and
     ``await publish(direct, declaration_fields(t, ned, conf))`` once at the declaration."""

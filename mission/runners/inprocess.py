@@ -1,12 +1,12 @@
 """In-process runner: simulator + (estimator) + strategy in lockstep, no I/O, for batch evaluation.
 
-One trial: build the Simulation with the vehicle waiting on the ground, arm, take off to the
-strategy's search altitude, enter offboard, then every strategy tick (``rate_hz``, 10 Hz by
-default): advance the simulation one tick, drain the sensor samples, feed the wind source
-(the estimator in ``estimated`` mode), build the Observation from the latest GNSS fix and
-chemical reading, call the strategy and send its setpoint with ``fc.offboard_setpoint``.
-Stops on completion (declared + descended), the time limit (the scenario's duration), a
-geofence exit or a crash.
+One trial is the one mission loop (:mod:`mission.loop`) flying the simulation through the
+lockstep adapter (:class:`~mission.runners.lockstep.LockstepVehicle`): arm, take off to the
+strategy's search altitude, hover until the wind source gives a direction, then every strategy
+tick (``rate_hz``, 10 Hz by default) the strategy on the latest GNSS fix and chemical reading,
+its setpoint clamped into the limits and sent to the built-in autopilot. Stops on completion
+(declared + descended), the time limit (the scenario's duration), a geofence exit (a box of
+``geofence_m`` around home) or a crash; the trial is then scored against the truth.
 
 Observation inputs are only what a real vehicle has: the latest GNSS fix (position and
 velocity, with the receiver's noise and 0.1 s latency), the chemical reading, and the wind
@@ -18,16 +18,19 @@ Units SI, frames NED; times are simulation seconds from t = 0 (on the ground, be
 
 from __future__ import annotations
 
+import asyncio
 import math
+import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from mission.loop import LoopConfig, MissionLoop
+from mission.runners.lockstep import InProcessWind, LockstepVehicle
+from mission.safety import SafetyLimits
 from mission.strategies import make_strategy
-from mission.strategies.base import Observation, Setpoint
 from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import make_wind_source
-from sitl.autopilot.flight_modes import LandedState, Mode
 from sitl.scenario import Scenario, load_scenario
 from sitl.simulation import Simulation
 
@@ -39,6 +42,11 @@ SUCCESS_RADIUS_BY_STRATEGY = {"infotaxis": 3.0}
 #: The vehicle has *reached* the source once it comes within this horizontal distance [m]
 #: (``reach_path_m``; issue 19's path measure, separate from the success radius).
 REACH_RADIUS_M = 2.0
+#: The take-off must end within this many simulated seconds.
+TAKEOFF_TIMEOUT_S = 30.0
+#: Loop abort causes and the trial failure cause each one scores as.
+_CAUSE = {"time-limit": "timeout", "takeoff-failed": "takeoff", "geofence": "geofence", "crash": "crash",
+          "search-ended": "timeout", "landed": "crash"}  # fmt: skip
 
 #: The estimator is fed the mean of this many consecutive 250 Hz IMU samples (125 Hz): half
 #: the UKF cost with the same direction accuracy (filtered upwind direction error rms 6.6 deg
@@ -129,19 +137,17 @@ def run_trial(
 
     Args:
         scenario: built-in scenario name, .toml path or Scenario (must have a ``[plume]``).
-        strategy: ``anemotaxis``, ``surge-cast`` or ``zigzag``.
+        strategy: a name of :data:`mission.strategies.STRATEGIES`.
         wind: ``estimated``, ``oracle`` or ``none``.
         seed: simulation seed (default: the scenario's); the strategy's seeded choices use it too.
         params / params_path: strategy parameters (default: the strategy's defaults).
         time_limit_s: simulated time limit (default: the scenario's duration).
-        geofence_m: horizontal distance from home beyond which the trial is aborted [m].
+        geofence_m: half-width of the horizontal box around home the trial must stay in [m].
         keep_track: record the position once per second in ``TrialResult.track``.
         imu_decimation: ``estimated`` mode: IMU samples averaged per estimator step (see
             ``IMU_DECIMATION``).
     """
-    import time as _time
-
-    wall0 = _time.perf_counter()
+    wall0 = time.perf_counter()
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
     if sc.plume is None:
         raise ValueError(f"scenario {sc.name!r} has no [plume] table: nothing to search for")
@@ -149,121 +155,82 @@ def run_trial(
     sim = Simulation(sc, seed=seed, autostart_route=False, record_truth=(wind == "estimated"))
     seed = sim.seed
     strat = make_strategy(strategy)
-    home = np.array([sc.start.position_ned[0], sc.start.position_ned[1], 0.0])
-    strat.reset(home, p, seed=seed)
-    ws = make_wind_source(wind, sim, p, imu_decimation=imu_decimation)
+    vehicle = LockstepVehicle(sim, make_wind_source(wind, sim, p, imu_decimation=imu_decimation), p.rate_hz)
     limit = sc.duration_s if time_limit_s is None else float(time_limit_s)
-    src = np.asarray(sim.plume.config.sources[0].position_ned, dtype=float)
+    limits = SafetyLimits(box_min_ned=(-geofence_m, -geofence_m, -500.0), box_max_ned=(geofence_m, geofence_m, 0.0),
+                          min_altitude_m=0.5, max_altitude_m=500.0, time_limit_s=limit)  # fmt: skip
+    src = np.asarray(sim.chem.sources_ned[0] if sim.chem is not None else np.zeros(3), dtype=float)
+    score = _Scorer(sim, src, p.rate_hz, keep_track)
+    vehicle.tick_hooks.append(score.every_tick)
+    loop = MissionLoop(vehicle, strat, p, InProcessWind(vehicle), limits,
+                       LoopConfig(takeoff_timeout_s=TAKEOFF_TIMEOUT_S, land_at_end=False), seed=seed,
+                       on_tick=score.tick)  # fmt: skip
+    res = asyncio.run(loop.run())
+    home = np.array(res.home_ned if res.home_ned is not None else np.zeros(3), dtype=float)
     start_dist = float(np.hypot(*(src[0:2] - home[0:2])))
-    dt = 1.0 / p.rate_hz
-    fc = sim.fc
-
-    gnss = None
-    chem_value, chem_det = 0.0, False
-    track: list[list[float]] = []
-    path = 0.0
-    reach_path = math.nan
-    path_t: list[float] = []  # path flown so far at each offboard tick, for the verification records
-    path_m: list[float] = []
-    prev_pos: np.ndarray | None = None
-    sp = Setpoint()
-    cause = ""
-    t_declared = math.nan
-    offboard = False
-    t_air = math.nan
-    ok, why = fc.arm()
-    if not ok:
-        raise RuntimeError(f"cannot arm: {why}")
-    fc.takeoff(p.altitude_m)
-    k = 0
-    while True:
-        k += 1
-        sim.run_until(k * dt)
-        out = sim.drain()
-        wind_info = ws.update(out)  # the estimator runs through the take-off too
-        if out["gnss"]:
-            gnss = out["gnss"][-1]
-        chem = out.get("chem", [])
-        if chem:
-            chem_value, chem_det = chem[-1].value_mg_m3, chem[-1].detected
-        t = sim.t
-        if keep_track and k % round(p.rate_hz) == 0:
-            track.append([round(t, 2), *(round(float(v), 2) for v in sim.position)])
-        if sim.crashed:
-            cause = "crash"
-            break
-        if t >= limit - 1e-9:
-            cause = "timeout" if not offboard else "timeout"
-            break
-        if not offboard:
-            # Take-off: the autopilot climbs and switches to hold when it reaches the altitude.
-            if fc.mode == Mode.HOLD and fc.landed_state == LandedState.IN_AIR:
-                # Hover until the wind source gives a direction (the estimator converges in a
-                # few seconds), as a real vehicle would before it starts the search.
-                t_air = t if math.isnan(t_air) else t_air
-                waiting = wind_info is not None and not math.isfinite(wind_info.upwind_rad)
-                offboard = not waiting or t - t_air >= p.wind_wait_s
-            elif t > 30.0:
-                cause = "takeoff"
-                break
-            else:
-                continue
-        pos = sim.position  # truth only for the path length and the geofence (scoring)
-        if prev_pos is not None:
-            path += float(np.hypot(*(pos[0:2] - prev_pos[0:2])))
-        prev_pos = pos
-        path_t.append(t)
-        path_m.append(path)
-        if math.isnan(reach_path) and float(np.hypot(*(pos[0:2] - src[0:2]))) <= REACH_RADIUS_M:
-            reach_path = path
-        if float(np.hypot(*(pos[0:2] - home[0:2]))) > geofence_m:
-            cause = "geofence"
-            break
-        if gnss is None:
-            continue
-        obs = Observation(
-            t=t, position_ned=np.asarray(gnss.pos_ned, dtype=float), velocity_ned=np.asarray(gnss.vel_ned, dtype=float),
-            chem_mg_m3=float(chem_value), detected=bool(chem_det), chem_new=bool(chem), wind=wind_info,
-        )
-        sp = strat.update(obs)
-        if sp.declared_source_ned is not None and math.isnan(t_declared):
-            t_declared = float(sp.info.get("t_declared", t))
-            path_at_decl = path
-        fc.offboard_setpoint(t, pos=sp.position_ned, vel=sp.velocity_ned, yaw=sp.yaw_rad)
-        if fc.mode != Mode.OFFBOARD:
-            fc.set_mode(Mode.OFFBOARD)
-        if sp.done:
-            break
-    if sp.done or (not math.isnan(t_declared) and cause in ("timeout",)):
-        # Finished (or declared and then ran out of time during the descent).
-        pass
-    declared = sp.declared_source_ned
+    declared = None if res.declared_ned is None else np.asarray(res.declared_ned, dtype=float)
+    cause = "" if res.cause == "declared" else _CAUSE.get(res.cause, "timeout")
     radius = SUCCESS_RADIUS_BY_STRATEGY.get(strategy, SUCCESS_RADIUS_M)
-    cred = float(sp.credible_radius_m)
+    cred = float(res.credible_radius_m)
     if declared is not None:
         err = float(np.hypot(*(declared[0:2] - src[0:2])))
         success = err <= radius and cause != "crash"
-        if not success and not cause:
-            cause = "declared-far"
-        elif success:
-            cause = ""
-        path = path_at_decl
+        cause = "declared-far" if not success and not cause else ("" if success else cause)
+        path = res.path_m
     else:
-        err = math.nan
-        success = False
-        cause = cause or ("gave-up" if sp.state == "give-up" else "timeout")
+        err, success, path = math.nan, False, score.path
+        cause = "gave-up" if res.state == "give-up" and cause in ("", "timeout") else (cause or "timeout")
+    t_declared = loop.t_declared
     return TrialResult(
         scenario=sc.name, strategy=strategy, wind=wind, seed=seed, success=success,
-        declared_ned=None if declared is None else [round(float(v), 3) for v in declared],
-        confidence=round(float(sp.confidence), 3), error_m=err, time_s=t_declared, path_m=path,
-        start_distance_m=start_dist, cause=cause, end_state=sp.state,
-        n_detections=strat.memory.n_detect, hit_rate_at_last=round(strat.memory.hit_rate_at_last, 3),
-        diag=getattr(strat, "diag", {}), wall_s=_time.perf_counter() - wall0, track=track,
-        reach_path_m=reach_path,
-        verifications=_verification_records(strat, src, t, path_t, path_m),
+        declared_ned=res.declared_ned, confidence=res.confidence, error_m=err, time_s=t_declared, path_m=path,
+        start_distance_m=start_dist, cause=cause, end_state=res.state,
+        n_detections=_memory(strat)[0], hit_rate_at_last=round(_memory(strat)[1], 3),
+        diag=getattr(strat, "diag", {}), wall_s=time.perf_counter() - wall0, track=score.track,
+        reach_path_m=score.reach_path,
+        verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
         success_radius_m=radius, credible_radius_m=cred,
         credible_contains=None if declared is None or math.isnan(cred) else bool(err <= cred),
     )
+
+
+class _Scorer:
+    """Truth-based figures of a trial, taken at every search tick: the horizontal path flown, the
+    path until first within ``REACH_RADIUS_M`` of the source, the track once per second."""
+
+    def __init__(self, sim: Simulation, src: np.ndarray, rate_hz: float, keep_track: bool) -> None:
+        self.sim, self.src, self.keep_track = sim, src, keep_track
+        self.every = round(rate_hz)
+        self.path = 0.0
+        self.reach_path = math.nan
+        self.prev: np.ndarray | None = None
+        self.path_t: list[float] = []  # path flown so far at each tick, for the verification records
+        self.path_m: list[float] = []
+        self.track: list[list[float]] = []
+
+    def tick(self, t: float) -> None:
+        pos = self.sim.position
+        if self.prev is not None:
+            self.path += float(np.hypot(*(pos[0:2] - self.prev[0:2])))
+        self.prev = pos
+        self.path_t.append(t)
+        self.path_m.append(self.path)
+        if math.isnan(self.reach_path) and float(np.hypot(*(pos[0:2] - self.src[0:2]))) <= REACH_RADIUS_M:
+            self.reach_path = self.path
+
+    def every_tick(self, t: float) -> None:
+        """The track, once per second from the first tick (take-off included)."""
+        if self.keep_track and round(t * self.every) % self.every == 0:
+            self.track.append([round(t, 2), *(round(float(v), 2) for v in self.sim.position)])
+
+
+def _memory(strat: object) -> tuple[int, float]:
+    """(detections, hit rate at the last candidate) of a strategy that keeps a detection memory
+    (the bio-inspired ones do; the Strategy interface does not require it): (0, nan) otherwise."""
+    mem = getattr(strat, "memory", None)
+    if mem is None:
+        return 0, math.nan
+    return int(mem.n_detect), float(mem.hit_rate_at_last)
 
 
 def _verification_records(strat: object, src: np.ndarray, t_end: float, path_t: list[float], path_m: list[float]

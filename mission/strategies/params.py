@@ -307,7 +307,9 @@ def load_params(strategy: str, path: str | Path | None = None) -> CommonParams:
     if not p.is_file():
         raise ParamError(f"strategy file {p} does not exist")
     try:
-        data = tomllib.loads(p.read_text())
+        data = tomllib.loads(p.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ParamError(f"{p}: not a TOML text file (byte {e.start} is not UTF-8)") from None
     except tomllib.TOMLDecodeError as e:
         raise ParamError(f"{p}: TOML syntax error: {e}") from None
     unknown = set(data) - {"strategy"}

@@ -57,6 +57,7 @@ from vehicle.rotor_model import (
 SP_POS, SP_VEL, SP_ACC, SP_YAW, SP_YAWRATE, SP_FLAGS, SP_ATT, SP_THRUST = 0, 3, 6, 9, 10, 11, 12, 16
 N_SP = 17
 F_POS, F_VEL, F_ACC, F_YAW, F_OFF, F_ATT = 1, 2, 4, 8, 16, 32
+F_IDLE = 64  # rotors at armed idle (on the ground, not taking off)
 
 # Controller memory: velocity integrator (3), rate integrator (3), previous rates (3).
 N_CTRL_STATE = 9

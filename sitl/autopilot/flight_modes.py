@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from enum import Enum, IntEnum
 
 import numpy as np
 
 from sitl.autopilot.controller import (
     F_ACC,
     F_ATT,
+    F_IDLE,
     F_OFF,
     F_POS,
     F_VEL,
@@ -34,118 +33,15 @@ from sitl.autopilot.controller import (
     SP_YAW,
     SP_YAWRATE,
 )
+from sitl.autopilot.mission_exec import MissionExecution
+from sitl.autopilot.modes import FlightConfig, ItemKind, LandedState, MissionItem, Mode, StatusEvent
+from sitl.autopilot.trajectory import Trajectory
 
-F_IDLE = 64  # rotors at armed idle (on the ground, not taking off)
-
-
-class Mode(Enum):
-    """Autopilot modes (PX4 names in the values)."""
-
-    HOLD = "AUTO.LOITER"
-    POSITION = "POSCTL"
-    TAKEOFF = "AUTO.TAKEOFF"
-    OFFBOARD = "OFFBOARD"
-    MISSION = "AUTO.MISSION"
-    LAND = "AUTO.LAND"
-    RTL = "AUTO.RTL"
+__all__ = ["F_IDLE", "FlightConfig", "FlightController", "ItemKind", "LandedState", "MissionItem", "Mode",
+           "StatusEvent", "Trajectory"]
 
 
-class LandedState(IntEnum):
-    """MAV_LANDED_STATE values."""
-
-    UNDEFINED = 0
-    ON_GROUND = 1
-    IN_AIR = 2
-    TAKEOFF = 3
-    LANDING = 4
-
-
-class ItemKind(Enum):
-    TAKEOFF = "takeoff"
-    WAYPOINT = "waypoint"
-    LOITER_TIME = "loiter_time"
-    LAND = "land"
-    RTL = "rtl"
-    CHANGE_SPEED = "change_speed"
-
-
-@dataclass
-class MissionItem:
-    """One mission item in NED. ``position_ned`` NaN components mean "keep current"."""
-
-    kind: ItemKind
-    position_ned: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
-    acceptance_radius_m: float = 1.0
-    hold_s: float = 0.0
-    speed_m_s: float = math.nan
-    yaw_rad: float = math.nan
-
-
-@dataclass
-class FlightConfig:
-    """Mode-level limits and behaviour (PX4 parameter names in comments)."""
-
-    takeoff_altitude_m: float = 10.0  # MIS_TAKEOFF_ALT
-    takeoff_speed_m_s: float = 1.5  # MPC_TKO_SPEED
-    land_speed_m_s: float = 0.7  # MPC_LAND_SPEED
-    cruise_speed_m_s: float = 5.0  # MPC_XY_CRUISE
-    max_accel_m_s2: float = 2.0  # trajectory acceleration
-    rtl_altitude_m: float = 15.0  # RTL_RETURN_ALT (above home)
-    offboard_timeout_s: float = 1.0  # COM_OF_LOSS_T
-    disarm_after_land_s: float = 2.0  # COM_DISARM_LAND
-    max_lead_m: float = 4.0  # how far the moving setpoint may run ahead of the vehicle
-
-
-class Trajectory:
-    """A setpoint that travels from its current point toward a target at a speed, with
-    acceleration and deceleration limits, so waypoints are approached without overshoot."""
-
-    def __init__(self, start: np.ndarray) -> None:
-        self.pos = np.array(start, dtype=float)
-        self.target = self.pos.copy()
-        self.speed = 0.0
-        self.vel = np.zeros(3)
-        self.acc = np.zeros(3)
-
-    def retarget(self, target: np.ndarray) -> None:
-        self.target = np.array(target, dtype=float)
-
-    def reset(self, pos: np.ndarray) -> None:
-        self.pos = np.array(pos, dtype=float)
-        self.target = self.pos.copy()
-        self.speed = 0.0
-        self.vel[:] = 0.0
-        self.acc[:] = 0.0
-
-    def update(self, dt: float, cruise: float, accel: float, vehicle_pos: np.ndarray, lead: float) -> None:
-        d = self.target - self.pos
-        dist = float(np.linalg.norm(d))
-        if dist < 1e-6:
-            self.pos = self.target.copy()
-            self.speed = 0.0
-            self.vel[:] = 0.0
-            self.acc[:] = 0.0
-            return
-        v_allow = min(cruise, math.sqrt(2.0 * accel * dist))
-        if float(np.linalg.norm(self.pos - vehicle_pos)) > lead:
-            v_allow = min(v_allow, 0.5 * cruise)
-        prev = self.speed
-        self.speed = max(min(self.speed + accel * dt, v_allow), 0.0)
-        step = min(self.speed * dt, dist)
-        u = d / dist
-        self.pos = self.pos + u * step
-        self.vel = u * self.speed
-        self.acc = u * (self.speed - prev) / dt
-
-
-@dataclass
-class StatusEvent:
-    t: float
-    severity: int  # MAV_SEVERITY: 0 emergency .. 6 info
-    text: str
-
-
-class FlightController:
+class FlightController(MissionExecution):
     """Mode logic. Call :meth:`update` at the mode rate with the true state."""
 
     def __init__(self, config: FlightConfig | None = None, home_yaw: float = 0.0) -> None:
@@ -198,6 +94,15 @@ class FlightController:
             if reason:
                 return reason
         return None
+
+    def start_in_air(self, pos_ned: np.ndarray) -> None:
+        """Initial condition of an airborne start: armed, in the air, holding at ``pos_ned`` (m, NED)."""
+        self._on_ground = False
+        self._pos = np.array(pos_ned, dtype=float)
+        self.armed = True
+        self.landed_state = LandedState.IN_AIR
+        self._traj.reset(self._pos)
+        self.mode = Mode.HOLD
 
     def arm(self) -> tuple[bool, str]:
         if self.armed:
@@ -274,26 +179,6 @@ class FlightController:
         self._speed = float(speed_m_s)
         return True, "speed set"
 
-    def set_mission(self, items: list[MissionItem]) -> None:
-        self.mission = list(items)
-        self.mission_index = 0
-
-    def start_mission(self, index: int | None = None) -> tuple[bool, str]:
-        if not self.mission:
-            return False, "no mission"
-        if not self.armed:
-            return False, "not armed"
-        if index is not None:
-            if not 0 <= index < len(self.mission):
-                return False, f"mission index {index} outside [0, {len(self.mission) - 1}]"
-            self.mission_index = index
-        if self.mission_index >= len(self.mission):
-            self.mission_index = 0
-        self._traj.reset(self._pos)
-        self._start_item()
-        self._set_mode(Mode.MISSION)
-        return True, "mission started"
-
     def offboard_setpoint(
         self,
         t: float,
@@ -344,10 +229,11 @@ class FlightController:
             return True, "offboard"
         if mode == Mode.TAKEOFF:
             return self.takeoff()
-        if mode == Mode.LAND:
-            return self.land() if self.armed else (self._set_mode(Mode.LAND) or (True, "land"))
-        if mode == Mode.RTL:
-            return self.rtl() if self.armed else (self._set_mode(Mode.RTL) or (True, "rtl"))
+        if mode in (Mode.LAND, Mode.RTL):
+            if self.armed:
+                return self.land() if mode == Mode.LAND else self.rtl()
+            self._set_mode(mode)
+            return True, "land" if mode == Mode.LAND else "rtl"
         if mode == Mode.MISSION:
             if not self.armed:
                 self._set_mode(Mode.MISSION)
@@ -361,6 +247,33 @@ class FlightController:
     # ------------------------------------------------------------------ update
     def update(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool, dt: float) -> np.ndarray:
         """Advance the mode logic to time t with the true state; returns the setpoint vector."""
+        self._observe(t, x, on_ground, crashed)
+        sp = self.sp
+        if not self.armed:
+            return self._disarmed_sp(on_ground)
+        if self.mode == Mode.OFFBOARD:
+            if not self.offboard_active(t):
+                self.say("Offboard setpoint stream lost: switching to Hold", 4)
+                self._enter_hold()
+            else:
+                sp[:] = self._offb_sp
+                self._traj.reset(self._pos)
+                self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+                if on_ground and int(sp[SP_FLAGS]) & (F_POS | F_VEL) and not self._wants_climb(sp):
+                    sp[SP_FLAGS] = F_IDLE
+                return sp
+        speed = self._step_mode(t)
+        if not self.armed:  # landed and disarmed in this step
+            sp[:] = 0.0
+            sp[SP_FLAGS] = F_OFF
+            return sp
+        if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
+            return self._descend_sp(on_ground)
+        q = x[6:10]
+        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
+        return self._trajectory_sp(dt, speed, on_ground, cur_yaw)
+
+    def _observe(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool) -> None:
         self._t = t
         self._pos = x[0:3].copy()
         self._vel = x[3:6].copy()
@@ -372,56 +285,45 @@ class FlightController:
             self.failsafe = True
             self.say("Crash detected: motors stopped", 0)
             self.armed = False
-        q = x[6:10]
-        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
-        sp = self.sp
-        if not self.armed:
-            sp[:] = 0.0
-            sp[SP_FLAGS] = F_OFF
-            self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
-            return sp
-        cfg = self.config
-        mode = self.mode
-        if mode == Mode.OFFBOARD:
-            if not self.offboard_active(t):
-                self.say("Offboard setpoint stream lost: switching to Hold", 4)
-                self._enter_hold()
-            else:
-                sp[:] = self._offb_sp
-                self._traj.reset(self._pos)
-                self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
-                if on_ground and int(sp[SP_FLAGS]) & (F_POS | F_VEL) and not self._wants_climb(sp):
-                    sp[SP_FLAGS] = F_IDLE
-                return sp
-        mode = self.mode
+
+    def _disarmed_sp(self, on_ground: bool) -> np.ndarray:
+        self.sp[:] = 0.0
+        self.sp[SP_FLAGS] = F_OFF
+        self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
+        return self.sp
+
+    def _step_mode(self, t: float) -> float:
+        """The mode's own logic for this step; returns the speed the trajectory may use (m/s)."""
         speed = self._speed
-        if mode == Mode.TAKEOFF:
-            speed = cfg.takeoff_speed_m_s
+        if self.mode == Mode.TAKEOFF:
+            speed = self.config.takeoff_speed_m_s
             if abs(self._pos[2] - self._takeoff_target[2]) < 0.3:
                 self.say("Takeoff complete")
                 self._enter_hold()
-        elif mode == Mode.LAND:
+        elif self.mode == Mode.LAND:
             self._land_step(t)
-        elif mode == Mode.RTL:
+        elif self.mode == Mode.RTL:
             self._rtl_step(t)
-        elif mode == Mode.MISSION:
+        elif self.mode == Mode.MISSION:
             speed = self._mission_step(t)
-        if not self.armed:
-            sp[:] = 0.0
-            sp[SP_FLAGS] = F_OFF
-            return sp
-        if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
-            sp[:] = 0.0
-            sp[SP_POS:SP_POS + 3] = self._traj.pos
-            sp[SP_VEL + 2] = cfg.land_speed_m_s
-            sp[SP_YAW] = self._yaw
-            sp[SP_FLAGS] = F_POS | F_VEL | F_YAW
-            # Only the horizontal position is held: zero the vertical position error.
-            sp[SP_POS + 2] = self._pos[2]
-            self.landed_state = LandedState.LANDING if not on_ground else LandedState.ON_GROUND
-            return sp
         if self.mode == Mode.TAKEOFF:
-            speed = cfg.takeoff_speed_m_s
+            speed = self.config.takeoff_speed_m_s
+        return speed
+
+    def _descend_sp(self, on_ground: bool) -> np.ndarray:
+        sp = self.sp
+        sp[:] = 0.0
+        sp[SP_POS:SP_POS + 3] = self._traj.pos
+        sp[SP_VEL + 2] = self.config.land_speed_m_s
+        sp[SP_YAW] = self._yaw
+        sp[SP_FLAGS] = F_POS | F_VEL | F_YAW
+        # Only the horizontal position is held: zero the vertical position error.
+        sp[SP_POS + 2] = self._pos[2]
+        self.landed_state = LandedState.LANDING if not on_ground else LandedState.ON_GROUND
+        return sp
+
+    def _trajectory_sp(self, dt: float, speed: float, on_ground: bool, cur_yaw: float) -> np.ndarray:
+        cfg, sp = self.config, self.sp
         self._traj.update(dt, speed, cfg.max_accel_m_s2, self._pos, cfg.max_lead_m)
         sp[:] = 0.0
         sp[SP_POS:SP_POS + 3] = self._traj.pos
@@ -499,77 +401,3 @@ class FlightController:
             self.mode = Mode.RTL
         elif self._phase == "descend":
             self._land_step(t)
-
-    def _start_item(self) -> None:
-        self._hold_until = math.nan
-        while self.mission_index < len(self.mission):
-            item = self.mission[self.mission_index]
-            if item.kind == ItemKind.CHANGE_SPEED:
-                if math.isfinite(item.speed_m_s) and item.speed_m_s > 0:
-                    self._speed = item.speed_m_s
-                self.mission_reached.append(self.mission_index)
-                self.mission_index += 1
-                continue
-            target = self._item_target(item)
-            if item.kind == ItemKind.LAND:
-                self._traj.retarget(np.array([target[0], target[1], self._traj.pos[2]]))
-                self._phase = "approach"
-            elif item.kind == ItemKind.RTL:
-                self.mission_reached.append(self.mission_index)
-                self.rtl()
-                return
-            else:
-                self._traj.retarget(target)
-            if math.isfinite(item.yaw_rad):
-                self._yaw = item.yaw_rad
-            elif item.kind in (ItemKind.WAYPOINT, ItemKind.LOITER_TIME):
-                d = target[:2] - self._pos[:2]
-                if np.hypot(*d) > 2.0:
-                    self._yaw = math.atan2(d[1], d[0])
-            return
-
-    def _item_target(self, item: MissionItem) -> np.ndarray:
-        p = item.position_ned.copy()
-        ref = self._traj.target
-        for i in range(3):
-            if not math.isfinite(p[i]):
-                p[i] = ref[i]
-        if item.kind == ItemKind.TAKEOFF and not math.isfinite(item.position_ned[2]):
-            p[2] = self.home[2] - self.config.takeoff_altitude_m
-        if item.kind == ItemKind.TAKEOFF:
-            p[0], p[1] = self._pos[0], self._pos[1]
-        return p
-
-    def _mission_step(self, t: float) -> float:
-        if self.mission_index >= len(self.mission):
-            return self._speed
-        item = self.mission[self.mission_index]
-        speed = self.config.takeoff_speed_m_s if item.kind == ItemKind.TAKEOFF else self._speed
-        if item.kind == ItemKind.LAND:
-            near = np.linalg.norm(self._pos[:2] - self._traj.target[:2])
-            if near < max(item.acceptance_radius_m, 0.5):
-                self.mission_reached.append(self.mission_index)
-                self.mission_index += 1
-                self._begin_land()
-            return speed
-        reached = np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3)
-        reached = reached and np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3
-        if item.kind == ItemKind.TAKEOFF:
-            reached = (
-                abs(self._pos[2] - self._traj.target[2]) < 0.3
-                and abs(self._vel[2]) < 0.5
-                and not self._on_ground
-            )
-        if reached:
-            hold = item.hold_s
-            if not math.isfinite(self._hold_until):
-                self._hold_until = t + hold
-            if t >= self._hold_until:
-                self.mission_reached.append(self.mission_index)
-                self.mission_index += 1
-                if self.mission_index >= len(self.mission):
-                    self.say("Mission finished, loitering")
-                    self._enter_hold()
-                else:
-                    self._start_item()
-        return speed

@@ -18,13 +18,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sitl.autopilot.flight_modes import Mode
-from sitl.link.endpoint import Link, targets_us
+from sitl.link.endpoint import Endpoint, Link, targets_us
+from sitl.link.port import AutopilotPort
 from sitl.link.telemetry import mode_from_px4
 from sitl.world.sensors import geodetic_to_ned
 from wire.dialect import mavlink as mav
 
 if TYPE_CHECKING:
-    from sitl.link.runner import SitlLink
+    from sitl.link.streams import StreamScheduler
 
 log = logging.getLogger(__name__)
 
@@ -52,12 +53,13 @@ FLIGHT_SW_VERSION = (1 << 24) | (15 << 16) | (0 << 8) | 255
 
 
 class CommandHandler:
-    """Executes commands against the flight controller of a :class:`SitlLink`."""
+    """Executes commands against the built-in autopilot (:class:`AutopilotPort`)."""
 
-    def __init__(self, sitl: SitlLink) -> None:
-        self.sitl = sitl
+    def __init__(self, ep: Endpoint, ap: AutopilotPort, streams: StreamScheduler) -> None:
+        self.ep = ep
+        self.ap = ap
+        self.streams = streams
         self._after_ack: list = []
-        ep = sitl.endpoint
         ep.handlers["COMMAND_LONG"] = self.on_command_long
         ep.handlers["COMMAND_INT"] = self.on_command_int
 
@@ -84,25 +86,24 @@ class CommandHandler:
             result = self.execute(cmd, p, latlon, frame, link)
         except Exception:
             log.warning("command %d failed", cmd, exc_info=True)
-            self.sitl.endpoint.counters["handler_errors"] += 1
+            self.ep.counters["handler_errors"] += 1
             result = FAILED
         if result is None:
             return
-        self.sitl.endpoint.send(
+        self.ep.send(
             mav.MAVLink_command_ack_message(cmd, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()), link
         )
         # Requested messages follow their COMMAND_ACK, as on PX4.
         after, self._after_ack = self._after_ack, []
         if result == ACCEPTED:
-            self.sitl.endpoint.send_many(after, link)
+            self.ep.send_many(after, link)
         if result != ACCEPTED:
-            self.sitl.endpoint.counters["commands_refused"] += 1
+            self.ep.counters["commands_refused"] += 1
 
     # ------------------------------------------------------------------ commands
     def execute(self, cmd: int, p: list[float], latlon: tuple | None, frame: int, link: Link) -> int | None:
         """Run one command; returns the MAV_RESULT (None: the command acknowledges itself)."""
-        sitl = self.sitl
-        fc = sitl.sim.fc
+        fc = self.ap.fc
         if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
             if p[0] == 1.0:
                 ok, _ = fc.arm()
@@ -114,7 +115,7 @@ class CommandHandler:
         if cmd == mav.MAV_CMD_NAV_TAKEOFF:
             alt = None
             if math.isfinite(p[6]):
-                alt = p[6] - sitl.home_amsl()
+                alt = p[6] - self.ap.home_amsl()
             ok, _ = fc.takeoff(alt)
             return ACCEPTED if ok else DENIED
         if cmd == mav.MAV_CMD_NAV_LAND:
@@ -137,7 +138,7 @@ class CommandHandler:
                 fc.start_mission(int(p[0]))
             else:
                 fc.mission_index = int(p[0])
-            sitl.mission_changed()
+            self.ap.mission_changed()
             return ACCEPTED
         if cmd == mav.MAV_CMD_DO_REPOSITION:
             return self._reposition(p, latlon, frame)
@@ -149,11 +150,11 @@ class CommandHandler:
         if cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
             if not math.isfinite(p[0]):
                 return DENIED
-            return ACCEPTED if sitl.streams.set_interval(int(p[0]), p[1], sitl.sim.t) else DENIED
+            return ACCEPTED if self.streams.set_interval(int(p[0]), p[1], self.ap.clock()) else DENIED
         if cmd == mav.MAV_CMD_GET_MESSAGE_INTERVAL:
             if not math.isfinite(p[0]):
                 return DENIED
-            us = sitl.streams.interval_us(int(p[0]))
+            us = self.streams.interval_us(int(p[0]))
             if us is None:
                 return DENIED
             self._after_ack.append(mav.MAVLink_message_interval_message(int(p[0]), us))
@@ -168,7 +169,7 @@ class CommandHandler:
         return UNSUPPORTED
 
     def _set_mode(self, p: list[float]) -> int:
-        fc = self.sitl.sim.fc
+        fc = self.ap.fc
         if not (math.isfinite(p[0]) and math.isfinite(p[1]) and math.isfinite(p[2])):
             return DENIED
         if not int(p[0]) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
@@ -176,14 +177,13 @@ class CommandHandler:
         mode = mode_from_px4(int(p[1]), int(p[2]))
         if mode is None:
             return DENIED
-        if mode == Mode.OFFBOARD and not fc.offboard_active(self.sitl.sim.t):
+        if mode == Mode.OFFBOARD and not fc.offboard_active(self.ap.clock()):
             return REJECTED
         ok, _ = fc.set_mode(mode)
         return ACCEPTED if ok else DENIED
 
     def _reposition(self, p: list[float], latlon: tuple | None, frame: int) -> int:
-        sitl = self.sitl
-        home = sitl.sim.scenario.sensors.home
+        home = self.ap.home
         lat, lon = latlon if latlon is not None else (math.nan, math.nan)
         alt = p[6]
         if not all(math.isnan(v) or math.isfinite(v) for v in (lat, lon, alt)):
@@ -196,20 +196,19 @@ class CommandHandler:
             target[0:2] = ned[0:2]
         if math.isfinite(alt):
             if frame in (mav.MAV_FRAME_GLOBAL_RELATIVE_ALT, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
-                target[2] = sitl.sim.fc.home[2] - alt
+                target[2] = self.ap.fc.home[2] - alt
             else:
                 target[2] = home.alt_m - alt
         if np.any(np.abs(np.nan_to_num(target)) > 1e5):
             return DENIED
         yaw = math.radians(p[3]) if math.isfinite(p[3]) else math.nan
         if math.isfinite(p[0]) and p[0] > 0:
-            sitl.sim.fc.set_speed(p[0])
-        ok, _ = sitl.sim.fc.reposition(target, yaw)
+            self.ap.fc.set_speed(p[0])
+        ok, _ = self.ap.fc.reposition(target, yaw)
         return ACCEPTED if ok else DENIED
 
     def send_requested(self, msg_id: int, link: Link, p: list[float]) -> bool:
         """Send one requested message on ``link``; False if it is not something we have."""
-        sitl = self.sitl
         if msg_id == mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             self._after_ack.append(
                 mav.MAVLink_autopilot_version_message(
@@ -218,7 +217,7 @@ class CommandHandler:
                 )
             )  # fmt: skip
             return True
-        msgs = sitl.streams.build_once(msg_id)
+        msgs = self.streams.build_once(msg_id)
         if not msgs:
             return False
         self._after_ack.extend(msgs)

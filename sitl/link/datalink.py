@@ -20,15 +20,12 @@ left without its ground link should come down where it is, not hover until its b
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import Any
 
-from sitl.link.endpoint import SYSTEM_ID
-from sitl.link.params import Param
-
-if TYPE_CHECKING:
-    from sitl.link.endpoint import Link
-    from sitl.link.runner import SitlLink
-    from sitl.simulation import Simulation
+from sitl.autopilot.flight_modes import FlightController
+from sitl.link.endpoint import SYSTEM_ID, Endpoint, Link
+from sitl.link.params import Param, ParamTable
 
 DLL_DISABLED, DLL_HOLD, DLL_RTL, DLL_LAND = 0, 1, 2, 3
 
@@ -43,36 +40,34 @@ class DataLinkFailsafe:
         lost: the link is lost now; ``losses``: how many times it was lost.
     """
 
-    def __init__(self, sitl: SitlLink, timeout_s: float = 10.0, action: int = DLL_LAND) -> None:
-        self.sitl = sitl
+    def __init__(self, ep: Endpoint, fc: FlightController, clock: Callable[[], float], table: ParamTable,
+                 timeout_s: float = 10.0, action: int = DLL_LAND) -> None:  # fmt: skip
+        self.fc = fc
+        self.clock = clock
         self.timeout_s = float(timeout_s)
         self.action = int(action)
         self.last_heartbeat_t = math.nan
         self.lost = False
         self.losses = 0
-        sitl.endpoint.rx_hooks.append(self.on_rx)
-        sitl.sim.step_hooks.append(self.on_mode_tick)
-        table = sitl.params
-        for p in (
-            Param("NAV_DLL_ACT", lambda: float(self.action), lambda v: setattr(self, "action", int(v)), 0, 3),
-            Param("COM_DL_LOSS_T", lambda: self.timeout_s, lambda v: setattr(self, "timeout_s", float(v)), 0.5, 300),
-        ):
-            table.by_name[p.name] = len(table.params)
-            table.params.append(p)
+        ep.rx_hooks.append(self.on_rx)
+        table.add(Param("NAV_DLL_ACT", lambda: float(self.action), lambda v: setattr(self, "action", int(v)), 0, 3))
+        table.add(Param("COM_DL_LOSS_T", lambda: self.timeout_s, lambda v: setattr(self, "timeout_s", float(v)),
+                        0.5, 300))  # fmt: skip
 
-    def on_rx(self, msg: object, link: Link) -> None:
+    def on_rx(self, msg: Any, link: Link) -> None:
         if msg.get_type() != "HEARTBEAT" or msg.get_srcSystem() == SYSTEM_ID:
             return
-        self.last_heartbeat_t = self.sitl.sim.t
+        self.last_heartbeat_t = self.clock()
         if self.lost:
             self.lost = False
-            self.sitl.sim.fc.say("Data link regained", 5)
+            self.fc.say("Data link regained", 5)
 
-    def on_mode_tick(self, sim: Simulation) -> None:
+    def on_mode_tick(self, _sim: Any = None) -> None:
+        """Check for a loss (a ``Simulation.step_hooks`` entry: every slow tick)."""
         if self.lost or self.action == DLL_DISABLED or math.isnan(self.last_heartbeat_t):
             return
-        fc = sim.fc
-        if sim.t - self.last_heartbeat_t <= self.timeout_s or not fc.armed or sim.on_ground:
+        fc = self.fc
+        if self.clock() - self.last_heartbeat_t <= self.timeout_s or not fc.armed or fc.on_ground:
             return
         self.lost = True
         self.losses += 1

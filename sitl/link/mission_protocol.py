@@ -19,19 +19,18 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from sitl.autopilot.flight_modes import ItemKind, MissionItem, Mode
-from sitl.link.endpoint import Link, targets_us
+from sitl.link.endpoint import Endpoint, Link, targets_us
 from sitl.link.geofence import Geofence
+from sitl.link.port import AutopilotPort
 from sitl.world.sensors import geodetic_to_ned
 from wire.dialect import mavlink as mav
-
-if TYPE_CHECKING:
-    from sitl.link.runner import SitlLink
 
 REQUEST_TIMEOUT_S = 0.5
 REQUEST_RETRIES = 5
@@ -84,29 +83,32 @@ class Transfer:
 
 
 class MissionProtocol:
-    """Mission/geofence storage and transfers for one :class:`SitlLink`."""
+    """Mission/geofence storage and transfers of the built-in autopilot (:class:`AutopilotPort`)."""
 
-    def __init__(self, sitl: SitlLink) -> None:
-        self.sitl = sitl
+    def __init__(self, ep: Endpoint, ap: AutopilotPort, geofence: Geofence,
+                 mission_current: Callable[[], list[Any]]) -> None:  # fmt: skip
+        self.ep = ep
+        self.ap = ap
+        self.geofence = geofence
+        self.mission_current = mission_current
         self.plans: dict[int, list] = {MISSION: [], FENCE: []}  # the raw MISSION_ITEM_INT messages
         self.transfer: Transfer | None = None
         self._last_done: tuple[int, int, int] | None = None  # (link index, type, count) of last upload
-        ep = sitl.endpoint
         for name in ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
                      "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
                      "MISSION_ACK"):  # fmt: skip
-            ep.handlers[name] = getattr(self, "on_" + name.lower())
+            self.ep.handlers[name] = getattr(self, "on_" + name.lower())
 
     # ------------------------------------------------------------------ helpers
     def _ack(self, link: Link, msg: object, code: int, mission_type: int) -> None:
-        self.sitl.endpoint.send(
+        self.ep.send(
             mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
         )
         if code != mav.MAV_MISSION_ACCEPTED:
-            self.sitl.endpoint.counters["mission_errors"] += 1
+            self.ep.counters["mission_errors"] += 1
 
     def _request(self, tr: Transfer) -> None:
-        self.sitl.endpoint.send(
+        self.ep.send(
             mav.MAVLink_mission_request_int_message(tr.sysid, tr.compid, tr.next_seq, tr.mission_type), tr.link
         )
         tr.deadline = time.monotonic() + REQUEST_TIMEOUT_S
@@ -117,10 +119,10 @@ class MissionProtocol:
         if tr is None or time.monotonic() < tr.deadline:
             return
         if tr.retries >= REQUEST_RETRIES:
-            self.sitl.endpoint.send(
+            self.ep.send(
                 mav.MAVLink_mission_ack_message(tr.sysid, tr.compid, mav.MAV_MISSION_OPERATION_CANCELLED,
                                               tr.mission_type), tr.link)  # fmt: skip
-            self.sitl.endpoint.counters["mission_timeouts"] += 1
+            self.ep.counters["mission_timeouts"] += 1
             self.transfer = None
             return
         tr.retries += 1
@@ -174,7 +176,7 @@ class MissionProtocol:
         try:
             self._validate(item, mtype)
         except ItemError as e:
-            self.sitl.sim.fc.say(f"Mission item {msg.seq} rejected: {e}", 4)
+            self.ap.fc.say(f"Mission item {msg.seq} rejected: {e}", 4)
             self._ack(link, msg, e.code, mtype)
             self.transfer = None
             return
@@ -236,25 +238,24 @@ class MissionProtocol:
             raise ItemError(mav.MAV_MISSION_INVALID_PARAM7, f"altitude {it['z']}")
 
     def _install(self, mtype: int, items: list[dict]) -> None:
-        sitl = self.sitl
         if mtype == FENCE:
-            sitl.geofence.load(self._fence_from(items))
+            self.geofence.load(self._fence_from(items))
             self.plans[FENCE] = items
             return
         mission = [self._to_item(it) for it in items]
         self.plans[MISSION] = items
-        fc = sitl.sim.fc
+        fc = self.ap.fc
         was_flying = fc.mode == Mode.MISSION and fc.armed
         fc.set_mission(mission)
         if was_flying:
             fc.hold() if not mission else fc.start_mission(0)
-        sitl.mission_changed()
+        self.ap.mission_changed()
 
     def _ned(self, it: dict) -> np.ndarray:
-        home = self.sitl.sim.scenario.sensors.home
+        home = self.ap.home
         ned = geodetic_to_ned(it["lat"], it["lon"], home.alt_m, home)
         if it["frame"] in RELATIVE_FRAMES:
-            ned[2] = self.sitl.sim.fc.home[2] - it["z"]
+            ned[2] = self.ap.fc.home[2] - it["z"]
         else:
             ned[2] = home.alt_m - it["z"]
         return ned
@@ -309,7 +310,7 @@ class MissionProtocol:
         if mtype not in (MISSION, FENCE):
             self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
             return
-        self.sitl.endpoint.send(
+        self.ep.send(
             mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
                                             mtype), link)  # fmt: skip
 
@@ -325,8 +326,8 @@ class MissionProtocol:
             self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
             return
         it = plan[msg.seq]
-        fc = self.sitl.sim.fc
-        self.sitl.endpoint.send(
+        fc = self.ap.fc
+        self.ep.send(
             mav.MAVLink_mission_item_int_message(
                 msg.get_srcSystem(), msg.get_srcComponent(), msg.seq, it["frame"], it["command"],
                 int(mtype == MISSION and msg.seq == fc.mission_index), it["autocontinue"],
@@ -357,7 +358,7 @@ class MissionProtocol:
     def on_mission_set_current(self, msg: object, link: Link) -> None:
         if not targets_us(msg):
             return
-        fc = self.sitl.sim.fc
+        fc = self.ap.fc
         if not 0 <= msg.seq < len(fc.mission):
             self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, MISSION)
             return
@@ -365,7 +366,7 @@ class MissionProtocol:
             fc.start_mission(msg.seq)
         else:
             fc.mission_index = msg.seq
-        self.sitl.endpoint.send_many(self.sitl.telemetry.mission_current())
+        self.ep.send_many(self.mission_current())
 
     def on_mission_ack(self, msg: object, link: Link) -> None:
         pass  # end of a download: nothing to release, downloads are stateless here

@@ -15,17 +15,14 @@ non-unit quaternion) is dropped and counted in ``endpoint.counters["setpoints_re
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sitl.link.endpoint import Link, targets_us
+from sitl.link.endpoint import Endpoint, Link, targets_us
+from sitl.link.port import AutopilotPort
 from sitl.world.sensors import geodetic_to_ned
 from vehicle.frames import quat_to_euler
 from wire.dialect import mavlink as mav
-
-if TYPE_CHECKING:
-    from sitl.link.runner import SitlLink
 
 IGN_PX, IGN_PY, IGN_PZ = 1, 2, 4
 IGN_VX, IGN_VY, IGN_VZ = 8, 16, 32
@@ -57,20 +54,22 @@ def _vec(vals: tuple[float, float, float], mask: int, bits: tuple[int, int, int]
 
 
 class OffboardHandler:
-    def __init__(self, sitl: SitlLink) -> None:
-        self.sitl = sitl
-        ep = sitl.endpoint
+    """SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT and SET_ATTITUDE_TARGET into offboard setpoints."""
+
+    def __init__(self, ep: Endpoint, ap: AutopilotPort) -> None:
+        self.ep = ep
+        self.ap = ap
         ep.handlers["SET_POSITION_TARGET_LOCAL_NED"] = self.on_local
         ep.handlers["SET_POSITION_TARGET_GLOBAL_INT"] = self.on_global
         ep.handlers["SET_ATTITUDE_TARGET"] = self.on_attitude
 
     def _reject(self) -> None:
-        self.sitl.endpoint.counters["setpoints_rejected"] += 1
+        self.ep.counters["setpoints_rejected"] += 1
 
     def _apply(self, pos: np.ndarray | None, msg: object, frame: int, rel_pos: bool) -> None:
-        sim = self.sitl.sim
+        ap = self.ap
         mask = int(msg.type_mask)
-        yaw_now = float(quat_to_euler(sim.quaternion)[2])
+        yaw_now = float(quat_to_euler(ap.attitude())[2])
         body = frame in (mav.MAV_FRAME_BODY_NED, mav.MAV_FRAME_BODY_OFFSET_NED)
         c, s = math.cos(yaw_now), math.sin(yaw_now)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) if body else np.eye(3)
@@ -81,7 +80,7 @@ class OffboardHandler:
         if acc is not None:
             acc = rot @ acc
         if pos is not None and rel_pos:
-            pos = sim.position + rot @ pos
+            pos = ap.position() + rot @ pos
         yaw = None
         if not mask & IGN_YAW:
             if not math.isfinite(msg.yaw):
@@ -94,8 +93,8 @@ class OffboardHandler:
             yaw_rate = float(msg.yaw_rate)
         if pos is None and vel is None and acc is None:
             raise RejectedError("nothing to control")
-        sim.fc.offboard_setpoint(sim.t, pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate)
-        self.sitl.endpoint.counters["setpoints"] += 1
+        ap.fc.offboard_setpoint(ap.clock(), pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate)
+        self.ep.counters["setpoints"] += 1
 
     def on_local(self, msg: object, link: Link) -> None:
         if not targets_us(msg):
@@ -107,7 +106,7 @@ class OffboardHandler:
             return
         rel = frame in (mav.MAV_FRAME_LOCAL_OFFSET_NED, mav.MAV_FRAME_BODY_OFFSET_NED)
         try:
-            fill = np.zeros(3) if rel else self.sitl.sim.position
+            fill = np.zeros(3) if rel else self.ap.position()
             pos = _vec((msg.x, msg.y, msg.z), int(msg.type_mask), (IGN_PX, IGN_PY, IGN_PZ), fill, MAX_POS_M)
             self._apply(pos, msg, frame, rel)
         except RejectedError:
@@ -121,7 +120,7 @@ class OffboardHandler:
                          mav.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT, mav.MAV_FRAME_GLOBAL, mav.MAV_FRAME_GLOBAL_RELATIVE_ALT):
             self._reject()
             return
-        sim = self.sitl.sim
+        ap = self.ap
         mask = int(msg.type_mask)
         try:
             pos = None
@@ -129,13 +128,13 @@ class OffboardHandler:
                 lat, lon, alt = msg.lat_int * 1e-7, msg.lon_int * 1e-7, float(msg.alt)
                 if not (-90 <= lat <= 90 and -180 <= lon <= 180 and math.isfinite(alt)):
                     raise RejectedError("lat/lon/alt")
-                home = sim.scenario.sensors.home
+                home = ap.home
                 ned = geodetic_to_ned(lat, lon, home.alt_m, home)
                 if frame in (mav.MAV_FRAME_GLOBAL_INT, mav.MAV_FRAME_GLOBAL):
                     ned[2] = home.alt_m - alt
                 else:
-                    ned[2] = sim.fc.home[2] - alt
-                pos = _vec(tuple(ned), mask, (IGN_PX, IGN_PY, IGN_PZ), sim.position, MAX_POS_M)
+                    ned[2] = ap.fc.home[2] - alt
+                pos = _vec(tuple(ned), mask, (IGN_PX, IGN_PY, IGN_PZ), ap.position(), MAX_POS_M)
             self._apply(pos, msg, mav.MAV_FRAME_LOCAL_NED, False)
         except RejectedError:
             self._reject()
@@ -155,6 +154,5 @@ class OffboardHandler:
         if not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
             self._reject()
             return
-        sim = self.sitl.sim
-        sim.fc.offboard_setpoint(sim.t, attitude=q / n, thrust=thrust)
-        self.sitl.endpoint.counters["setpoints"] += 1
+        self.ap.fc.offboard_setpoint(self.ap.clock(), attitude=q / n, thrust=thrust)
+        self.ep.counters["setpoints"] += 1

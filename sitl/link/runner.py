@@ -24,6 +24,8 @@ from sitl.link.geofence import Geofence
 from sitl.link.mission_protocol import MissionProtocol
 from sitl.link.offboard import OffboardHandler
 from sitl.link.params import ParamProtocol, ParamTable
+from sitl.link.port import AutopilotPort
+from sitl.link.sim_params import WorldKnobs, sitl_parameters
 from sitl.link.streams import StreamScheduler
 from sitl.link.telemetry import Telemetry
 from sitl.link.transports import Transport
@@ -56,13 +58,20 @@ class SitlLink:
         self.streams = StreamScheduler(self.telemetry, true_wind_hz)
         self.geofence = Geofence()
         sim.step_hooks.append(self.geofence.on_mode_tick)
-        self.commands = CommandHandler(self)
-        self.missions = MissionProtocol(self)
-        self.offboard = OffboardHandler(self)
-        self.params = ParamTable(self)
-        self.param_protocol = ParamProtocol(self, self.params)
-        self.datalink = DataLinkFailsafe(self)  # NAV_DLL_ACT: land when the ground link's heartbeats stop
         ep = self.endpoint
+        self.port = AutopilotPort(fc=sim.fc, clock=lambda: sim.t, position=lambda: sim.position,
+                                  attitude=lambda: sim.quaternion, home=sim.scenario.sensors.home,
+                                  mission_changed=self.mission_changed)  # fmt: skip
+        self.commands = CommandHandler(ep, self.port, self.streams)
+        self.missions = MissionProtocol(ep, self.port, self.geofence, self.telemetry.mission_current)
+        self.offboard = OffboardHandler(ep, self.port)
+        self.knobs = WorldKnobs(sim.world)
+        self.params = ParamTable(sitl_parameters(sim.autopilot, self.geofence, self.knobs,
+                                                 lambda: self.speed, self.set_speed))  # fmt: skip
+        self.param_protocol = ParamProtocol(ep, self.params)
+        # NAV_DLL_ACT: land when the ground link's heartbeats stop.
+        self.datalink = DataLinkFailsafe(ep, sim.fc, lambda: sim.t, self.params)
+        sim.step_hooks.append(self.datalink.on_mode_tick)
         ep.handlers["HEARTBEAT"] = lambda msg, link: None
         ep.handlers["TIMESYNC"] = self.on_timesync
         ep.handlers["PING"] = self.on_ping
@@ -83,7 +92,7 @@ class SitlLink:
 
     def home_amsl(self) -> float:
         """Home altitude AMSL, m."""
-        return self.sim.scenario.sensors.home.alt_m - float(self.sim.fc.home[2])
+        return self.port.home_amsl()
 
     def set_speed(self, speed: float) -> None:
         """Change the speed factor now (re-anchors the wall clock, so there is no jump)."""

@@ -255,8 +255,18 @@ class SerialTransport(Transport):
 
 
 def parse_serial(text: str) -> tuple[str, int]:
-    """``DEV[:BAUD]`` to (device, baud), baud 57600 by default."""
+    """``DEV[:BAUD]`` to (device, baud), baud 57600 by default. A device path may itself hold colons
+    (``/dev/serial/by-path/pci-0000:00:14.0-usb-0:1:1.0-port0``): the text after the last colon is a
+    baud rate only when it is a number, or when the part before it names an existing device.
+    ValueError (one line) on a bad baud rate."""
     dev, sep, baud = text.rpartition(":")
     if sep and baud.isdigit():
-        return dev, int(baud)
-    return text, 57600
+        rate = int(baud)
+    elif sep and baud and os.path.exists(dev) and not os.path.exists(text):
+        raise ValueError(f"serial {text!r}: baud rate {baud!r} is not a number; allowed values are "
+                         f"{', '.join(map(str, _BAUDS))}")  # fmt: skip
+    else:
+        dev, rate = text, 57600
+    if rate not in _BAUDS:
+        raise ValueError(f"serial {text!r}: baud rate {rate}: allowed values are {', '.join(map(str, _BAUDS))}")
+    return dev, rate

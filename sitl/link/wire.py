@@ -42,6 +42,7 @@ import numpy as np
 
 from sitl.link.endpoint import COMPONENT_ID, SYSTEM_ID, Link
 from sitl.link.transports import UdpTransport
+from vehicle.frames import from_direction_deg
 from wire.jsonsafe import json_safe
 from wire.names import MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
 
@@ -198,10 +199,10 @@ class TruthSummary:
             self.statustexts += 1
 
     def true_sources(self) -> list[list[float]]:
-        plume = getattr(self.link.sim, "plume", None)
-        if plume is None:
+        chem = self.link.sim.chem
+        if chem is None:
             return []
-        return [[float(v) for v in s.position_ned] for s in plume.config.sources]
+        return [[float(v) for v in p] for p in chem.sources_ned]
 
     def to_dict(self) -> dict[str, Any]:
         sim = self.link.sim
@@ -267,8 +268,7 @@ class WireRecorder:
         record_simulation(sim, self.rec)
         if geofence_ned is not None:
             self.rec.geofence(*geofence_ned)
-        sensor = getattr(sim, "chem_sensor", None)
-        self.threshold = getattr(getattr(sensor, "config", None), "detection_limit_mg_m3", None)
+        self.threshold = None if sim.chem is None else sim.chem.sensor.config.detection_limit_mg_m3
         self.tau_s = 1.0 / (2.0 * math.pi * filter_cutoff_hz)
         self._filt: np.ndarray | None = None
         self._t_filt = 0.0
@@ -298,8 +298,8 @@ class WireRecorder:
             self._t_filt = t
             speed = math.hypot(w[0], w[1])
             f = self._filt
-            self.rec.wind_speed_dir(t, speed, math.degrees(math.atan2(-w[1], -w[0])),
-                                    math.hypot(f[0], f[1]), math.degrees(math.atan2(-f[1], -f[0])))  # fmt: skip
+            self.rec.wind_speed_dir(t, speed, float(from_direction_deg(w[0], w[1])),
+                                    math.hypot(f[0], f[1]), float(from_direction_deg(f[0], f[1])))  # fmt: skip
             if self.threshold is not None and t - self._t_thresh >= 1.0:
                 self._t_thresh = t
                 self.rec.chem(t, math.nan, self.threshold)
@@ -316,8 +316,7 @@ class WireRecorder:
             if name in SRC_NAMES:
                 self._src[name] = float(msg.value)
             elif name == SRC_CONF and all(n in self._src for n in SRC_NAMES):
-                plume = getattr(sim, "plume", None)
-                true = [s.position_ned for s in plume.config.sources] if plume is not None else []
+                true = [] if sim.chem is None else sim.chem.sources_ned.tolist()
                 self.rec.sources(true, [self._src[n] for n in SRC_NAMES], float(msg.value), t=sim.t)
                 self.rec.text(sim.t, "source declared at N {:.1f} E {:.1f} D {:.1f} m ({:.0f}%)".format(
                     *(self._src[n] for n in SRC_NAMES), 100 * float(msg.value)), "INFO", "mission")

@@ -1,10 +1,11 @@
-"""Tests for sitl.world.plume_attach: [plume] parsing, the plume + chemical sensor in the lockstep
+"""Tests for sitl.world.plume.setup and .part: [plume] parsing, the plume + chemical sensor in the lockstep
 simulation, and the plume scenarios (SI, NED; concentration in mg/m^3)."""
 
 from __future__ import annotations
 
 import copy
 import tomllib
+from dataclasses import replace
 from importlib import resources
 from typing import Any
 
@@ -15,7 +16,7 @@ from sitl.scenario import ScenarioError, builtin_scenarios, load_scenario, parse
 from sitl.simulation import Simulation
 from sitl.world.chem_sensor import ChemReading
 from sitl.world.plume import PuffPlume
-from sitl.world.plume_attach import parse_plume_table
+from sitl.world.plume.setup import parse_plume_table
 from windseek.cmd_sim import simulate
 
 
@@ -88,7 +89,7 @@ def test_chem_readings_are_drained_at_the_sensor_rate() -> None:
     assert all(isinstance(r, ChemReading) for r in chem)
     times = np.array([r.t for r in chem])
     np.testing.assert_allclose(times, 0.1 * np.arange(50), atol=1e-9)
-    assert sim.chem_latest is chem[-1]
+    assert sim.chem.latest is chem[-1]
     assert sim.plume.t == pytest.approx(4.9)  # advanced at 10 Hz, to the last due tick
     assert sim.drain()["chem"] == []  # drained
     sim.run_until(6.0)
@@ -122,7 +123,7 @@ def test_paper_s1_has_no_chemical_output() -> None:
     sim = Simulation(load_scenario("paper-s1"), seed=1)
     sim.run(1.0)
     assert "chem" not in sim.drain()
-    assert not hasattr(sim, "plume")
+    assert sim.plume is None and sim.chem is None
     assert not any(k.startswith(("plume_", "chem_")) for k in sim.summary_extras())
 
 
@@ -133,12 +134,13 @@ def test_plume_scenarios_load() -> None:
     for name in names:
         sc = load_scenario(name)
         assert sc.plume is not None and sc.duration_s == 300.0 and sc.route.takeoff_altitude_m == 5.0
-    assert load_scenario("open-field-stable").plume["stability"] == "F"
-    assert load_scenario("open-field-unstable").plume["stability"] == "A"
+    assert load_scenario("open-field-stable").plume.plume.stability == "F"
+    assert load_scenario("open-field-unstable").plume.plume.stability == "A"
     # The far start differs from open-field in the source distance only.
     far, near = load_scenario("open-field-far"), load_scenario("open-field")
-    assert far.plume["sources"][0]["position_ned"] == [120.0, 0.0, -2.0]
-    assert {**far.plume, "sources": near.plume["sources"]} == near.plume and far.wind == near.wind
+    assert far.plume.plume.sources[0].position_ned == (120.0, 0.0, -2.0)
+    assert replace(far.plume, plume=replace(far.plume.plume, sources=near.plume.plume.sources)) == near.plume
+    assert far.wind == near.wind
     shift = load_scenario("open-field-shift").wind
     v0, v1 = shift.velocity_ned, shift.changes[0].velocity_ned
     turn = np.degrees(np.arctan2(v1[1], v1[0]) - np.arctan2(v0[1], v0[0]))

@@ -1,0 +1,65 @@
+"""Who wrote a log and what flew: autopilot versions, vehicle types, and what the force model means.
+
+- :func:`sw_version`: a flight software version word (MAVLink AUTOPILOT_VERSION.flight_sw_version,
+  PX4 ULog ``ver_sw_release``) as text. Both PX4 and ArduPilot pack it as major << 24 | minor << 16
+  | patch << 8 | type, type being MAVLink's FIRMWARE_VERSION_TYPE (0 dev, 64 alpha, 128 beta,
+  192 rc, 255 official); QGroundControl shows it the same way.
+- :func:`mav_type_name`: a MAVLink MAV_TYPE as words (``"quadrotor"``, ``"fixed wing"``, ...).
+- :func:`model_caveat`: what the estimator's force model (a quadrotor's rotor forces, paper
+  Eq. 40-46, with the coefficients of the ``--vehicle`` file) means for the vehicle in the log.
+"""
+
+from __future__ import annotations
+
+from wire.dialect import mavlink
+
+#: FIRMWARE_VERSION_TYPE thresholds (MAVLink common.xml) -> label.
+_VERSION_TYPES = ((255, ""), (192, "rc"), (128, "beta"), (64, "alpha"), (0, "dev"))
+#: MAV_TYPE values of multirotors with four rotors (the paper's model has four).
+QUADROTOR_TYPES = frozenset({mavlink.MAV_TYPE_QUADROTOR})
+#: PX4 vehicle_status.vehicle_type (VEHICLE_TYPE_*) -> words.
+PX4_VEHICLE_TYPES = {0: "unknown", 1: "multicopter", 2: "fixed wing", 3: "rover", 4: "airship"}
+
+
+def sw_version(word: int) -> str:
+    """``0x01060000`` -> ``"v1.6.0 (dev)"``; ``0x040500FF`` -> ``"v4.5.0"`` (official release)."""
+    word = int(word) & 0xFFFFFFFF
+    major, minor, patch, kind = (word >> 24) & 0xFF, (word >> 16) & 0xFF, (word >> 8) & 0xFF, word & 0xFF
+    label = next(name for lo, name in _VERSION_TYPES if kind >= lo)
+    return f"v{major}.{minor}.{patch}" + (f" ({label})" if label else "")
+
+
+#: MAV_TYPE names of current MAVLink where pymavlink's common.xml still has older or reserved names.
+MAV_TYPE_NAMES = {19: "VTOL tailsitter duorotor", 20: "VTOL tailsitter quadrotor", 22: "VTOL fixedrotor",
+                  23: "VTOL tailsitter", 24: "VTOL tiltwing"}  # fmt: skip
+
+
+def mav_type_name(mav_type: int) -> str:
+    """MAV_TYPE value -> words, e.g. 2 -> ``"quadrotor"``, 22 -> ``"VTOL fixedrotor"`` (hover rotors + pusher)."""
+    if int(mav_type) in MAV_TYPE_NAMES:
+        return MAV_TYPE_NAMES[int(mav_type)]
+    entry = mavlink.enums["MAV_TYPE"].get(int(mav_type))
+    if entry is None or entry.name.startswith("MAV_TYPE_ENUM_END"):
+        return f"MAV_TYPE {mav_type}"
+    words = entry.name.removeprefix("MAV_TYPE_").lower().replace("_", " ")
+    return words.replace("vtol", "VTOL")
+
+
+def model_caveat(vehicle_type: str, vehicle_file: str, simulated: bool = False) -> str:
+    """One sentence: what the re-run's wind means for this vehicle, given the force model's vehicle file."""
+    if simulated:
+        return f"model: the log is from windseek's own SITL; the force model is the vehicle file's ({vehicle_file})"
+    kind = vehicle_type.lower()
+    base = (f"model: the estimator's force model is a quadrotor's rotor thrust and drag (paper Eq. 40-46) with "
+            f"the coefficients of '{vehicle_file}'")  # fmt: skip
+    if kind in ("quadrotor", "multicopter"):
+        return (base + f"; this log's vehicle is a {kind} but not that airframe: its rotors, mass and drag differ, "
+                "so the wind figure is biased by the model error (use --vehicle with this airframe's model)")
+    if kind == "unknown":
+        return base + "; the log does not say what the vehicle is: the figure holds only if it is that airframe"
+    return (base + f"; this log's vehicle is a {vehicle_type}, not a quadrotor: its wing lift and drag, control "
+            "surfaces and forward motor are not in the model and the actuator outputs may not be lift motors, "
+            "so the figure is not a wind measurement (only the autopilot's own estimate, where logged, is)")
+
+
+__all__ = ["PX4_VEHICLE_TYPES", "QUADROTOR_TYPES", "mav_type_name", "model_caveat", "sw_version"]

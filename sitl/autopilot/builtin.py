@@ -1,0 +1,91 @@
+"""The built-in autopilot as a :class:`~sitl.world.world.Pilot`: PX4-like flight modes at the slow-tick
+rate on the true state (it stands in for an autopilot and its navigation filter), and the cascaded
+controller every physics tick through the fused fast path (:mod:`sitl.autopilot.fused`).
+
+Units SI, NED world, FRD body; gains by name (:class:`~sitl.autopilot.controller.ControllerGains`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sitl.autopilot.controller import GAIN_NAMES, N_CTRL_STATE, ControllerGains
+from sitl.autopilot.flight_modes import FlightConfig, FlightController
+from sitl.autopilot.fused import advance_controlled
+from sitl.world.world import World
+from vehicle.rotor_model import hover_rotor_speed
+
+#: How long the captive trim of an airborne start runs (simulated s at t = 0; time does not advance).
+TRIM_S = 6.0
+#: Gain of the captive trim's velocity-integrator update (1/s).
+TRIM_GAIN = 2.0
+
+
+class BuiltinAutopilot:
+    """Flight modes (:class:`FlightController`, ``fc``) + controller gains and memory.
+
+    Args:
+        flight: mode-level limits (take-off speed, land speed, timeouts, ...).
+        gains: controller gains and limits.
+        home_ned: home point (m, NED) before the first arming; yaw_rad: initial yaw.
+    """
+
+    def __init__(self, flight: FlightConfig, gains: ControllerGains, home_ned: np.ndarray, yaw_rad: float) -> None:
+        self.fc = FlightController(flight, home_yaw=yaw_rad)
+        self.fc.home = np.array(home_ned, dtype=float)
+        self.gains = gains.as_array()
+        self.cs = np.zeros(N_CTRL_STATE)
+        self.accel_sp = np.zeros(3)
+
+    # ------------------------------------------------------------------ Pilot
+    def on_slow_tick(self, world: World) -> None:
+        """The mode logic at the slow-tick rate, on the true state."""
+        self.fc.update(world.t, world.phys.x, world.on_ground, world.crashed, world.slow_div * world.dt)
+
+    def advance(self, world: World, n: int) -> int:
+        ph = world.phys
+        return advance_controlled(n, world.tick, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div,
+                                  ph.rows, ph.fb, world.wind_kernel, self.fc.sp, self.gains, self.cs,
+                                  self.accel_sp)  # fmt: skip
+
+    # ------------------------------------------------------------------ set-up
+    def start_hovering(self, world: World) -> None:
+        """Initial condition of an airborne start: armed, holding, trimmed for the wind at the start.
+
+        The trim is found "captive": the vehicle is held at its start position and velocity (like
+        a test stand) for ``TRIM_S`` simulated seconds at t = 0 while attitude, rotor speeds and
+        controller integrators settle. Time does not advance and no sensor samples are produced,
+        so a run starts in steady hover instead of being blown off its point.
+        """
+        ph = world.phys
+        ph.x[13:17] = hover_rotor_speed(world.vehicle)
+        ph.flags[0] = 0.0
+        self.fc.start_in_air(ph.x[0:3])
+        slow_dt = world.slow_div * world.dt
+        self.fc.update(0.0, ph.x, False, False, slow_dt)
+        hold = ph.x[0:6].copy()
+        rows = np.zeros((2, ph.rows.shape[1]))
+        lim = self.gains[GAIN_NAMES.index("vel_int_lim")]
+        for _ in range(int(round(TRIM_S / ph.dt))):
+            advance_controlled(1, 0, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div, rows, ph.fb,
+                               world.wind_kernel, self.fc.sp, self.gains, self.cs, self.accel_sp)  # fmt: skip
+            # The stand measures the acceleration it prevents and trims the velocity-loop
+            # integrators against it, so the release finds the vehicle already leaning in.
+            accel = (ph.x[3:6] - hold[3:6]) / ph.dt
+            self.cs[0:3] = np.clip(self.cs[0:3] - TRIM_GAIN * accel * ph.dt, -lim, lim)
+            ph.x[0:6] = hold
+
+    # ------------------------------------------------------------------ live tuning
+    def gain(self, name: str) -> float:
+        """Current value of a controller gain (see :class:`ControllerGains`)."""
+        return float(self.gains[GAIN_NAMES.index(name)])
+
+    def set_gain(self, name: str, value: float) -> None:
+        """Change a controller gain in flight (parameter protocol). ValueError if unknown/bad."""
+        if name not in GAIN_NAMES:
+            raise ValueError(f"unknown gain {name!r}; allowed: {', '.join(GAIN_NAMES)}")
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"gain {name} = {value!r}: must be finite and >= 0")
+        self.gains[GAIN_NAMES.index(name)] = float(value)

@@ -1,0 +1,82 @@
+"""The world's physics loop (numba): one implementation of a physics tick, and the loop that
+holds externally commanded rotor speeds over many ticks.
+
+A tick samples the wind at the vehicle (held over the step), integrates the rigid body with
+RK4 (:func:`sitl.world.dynamics.rk4_step`), resolves the ground, flags a crash, and every
+``imu_div`` ticks writes one truth row (the IMU sample instant). The built-in autopilot's fused
+loop (:mod:`sitl.autopilot.fused`) calls the same :func:`physics_tick`, so a vehicle flown by an
+outside controller and one flown by the built-in autopilot see the same physics bit for bit.
+
+Truth row columns (``T_*``), recorded at every IMU sample instant: time (s), specific force
+(FRD, m/s^2), body rates (FRD, rad/s), rotor speeds (rad/s), position (NED, m), velocity (NED,
+m/s), attitude quaternion (body -> NED), wind at the vehicle (air-mass velocity NED, m/s), rotor
+command (rad/s). ``flags`` = [on_ground, crashed, largest touchdown speed (m/s), collisions].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from sitl.world.dynamics import rk4_step
+from sitl.world.wind.kernel import WindKernel, wind_velocity
+
+T_TIME = 0
+T_SPECIFIC_FORCE = slice(1, 4)  # FRD, m/s^2
+T_RATES = slice(4, 7)  # FRD, rad/s
+T_ROTORS = slice(7, 11)  # rad/s
+T_POS = slice(11, 14)  # NED, m
+T_VEL = slice(14, 17)  # NED, m/s
+T_QUAT = slice(17, 21)  # body -> NED
+T_WIND = slice(21, 24)  # air-mass velocity at the vehicle, NED, m/s
+T_ROTOR_CMD = slice(24, 28)  # rad/s
+N_TRUTH = 28
+
+FLAG_ON_GROUND, FLAG_CRASHED, FLAG_TOUCHDOWN_SPEED, FLAG_COLLISIONS = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def physics_tick(
+    tick: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, wind: np.ndarray, flags: np.ndarray,
+    p: np.ndarray, crash_speed: float, imu_div: int, rows: np.ndarray, nrow: int, fb: np.ndarray,
+) -> int:  # fmt: skip
+    """One physics tick in place with the rotor command ``w_cmd`` (rad/s) and the wind ``wind``
+    (NED, m/s) held over it. Returns the number of truth rows written so far (``nrow`` + 0 or 1)."""
+    on_ground = flags[FLAG_ON_GROUND] != 0.0
+    xn, og, vtd = rk4_step(x, w_cmd, wind, p, dt, on_ground, fb)
+    if tick % imu_div == 0:
+        r = rows[nrow]
+        r[0] = tick * dt
+        r[1:4] = fb
+        r[4:7] = x[10:13]
+        r[7:11] = x[13:17]
+        r[11:14] = x[0:3]
+        r[14:17] = x[3:6]
+        r[17:21] = x[6:10]
+        r[21:24] = wind
+        r[24:28] = w_cmd
+        nrow += 1
+    x[:] = xn
+    flags[FLAG_ON_GROUND] = 1.0 if og else 0.0
+    if vtd > flags[FLAG_TOUCHDOWN_SPEED]:
+        flags[FLAG_TOUCHDOWN_SPEED] = vtd
+    if vtd > 0.0 and vtd > crash_speed:
+        flags[FLAG_CRASHED] = 1.0
+    return nrow
+
+
+@njit(cache=True)
+def advance_commanded(
+    n: int, tick0: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, flags: np.ndarray, p: np.ndarray,
+    crash_speed: float, imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel,
+) -> int:  # fmt: skip
+    """``n`` physics ticks from tick ``tick0`` holding the commanded rotor speeds ``w_cmd`` (rad/s);
+    a crashed vehicle's rotors get zero. Returns the number of truth rows written to ``rows``."""
+    nrow = 0
+    stopped = np.zeros(4)
+    for k in range(n):
+        tick = tick0 + k
+        wind = wind_velocity(tick * dt, x[0:3], wk)
+        cmd = stopped if flags[FLAG_CRASHED] != 0.0 else w_cmd
+        nrow = physics_tick(tick, dt, x, cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb)
+    return nrow

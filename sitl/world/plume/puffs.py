@@ -1,0 +1,306 @@
+"""The instantaneous puff (filament) plume, Farrell et al. (2002) style; the plume factory.
+
+See :mod:`sitl.world.plume` for the model and its calibration; units m, s, m/s; NED;
+release g/s; concentration mg/m^3.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sitl.world.plume.config import G_TO_MG, TWO_PI_POW_1_5, PlumeConfig, WindLike, check_config
+from sitl.world.plume.gaussian import BRIGGS_Y, BRIGGS_Z, GaussianPlume, concentration_slice
+from sitl.world.plume.meander import (
+    MEANDER_REFRESH_S,
+    PUFF_GROWTH_SHARE,
+    MeanderField,
+    axis_calibration,
+    frozen_turbulence_variances,
+    meander_at,
+)
+
+# ---------------------------------------------------------------------------------- kernels
+# The puff update and the concentration sum are the plume's hot loops (called at the plume
+# and sensor rates inside a simulator that must run >= 100x real time): fused numba loops,
+# no (K,M) or (N,K) temporaries. Per-puff arithmetic is the formula of the docstrings above.
+
+@njit(cache=True)
+def _advance_puffs(
+    pos: np.ndarray,
+    r2: np.ndarray,
+    unit: np.ndarray,
+    refresh: np.ndarray,
+    vel: np.ndarray,
+    noise: np.ndarray,
+    scale: np.ndarray,
+    walk: np.ndarray,
+    growth: float,
+    h: float,
+    offset: np.ndarray,
+    k: np.ndarray,
+    phase: np.ndarray,
+    amp: np.ndarray,
+) -> None:
+    """One puff substep of ``h`` [s], in place.
+
+    pos (K,3): x, y NED and unfolded altitude (up) [m]; r2 (K,) [m^2]; unit (K,3): cached
+    unit meander, re-sampled at the pre-step position where ``refresh`` (K,) is True or the
+    cache is NaN; vel (K,3): wind NED [m/s] at the physical puff positions; noise (K,3):
+    standard normals; scale (3,): meander sigma per axis [m/s]; walk (3,): random-walk step
+    standard deviation [m]; growth: r^2 growth rate [m^2/s]; offset/k/phase/amp: meander."""
+    n = pos.shape[0]
+    for i in range(n):
+        if refresh[i] or math.isnan(unit[i, 0]):
+            meander_at(pos[i, 0], pos[i, 1], offset, k, phase, amp, unit[i])
+        # Vertical in the unfolded coordinate: NED velocity is down, altitude is up.
+        pos[i, 0] += (vel[i, 0] + unit[i, 0] * scale[0]) * h + noise[i, 0] * walk[0]
+        pos[i, 1] += (vel[i, 1] + unit[i, 1] * scale[1]) * h + noise[i, 1] * walk[1]
+        pos[i, 2] += (-vel[i, 2] + unit[i, 2] * scale[2]) * h + noise[i, 2] * walk[2]
+        r2[i] += growth * h
+
+
+@njit(cache=True)
+def _puff_concentration(pts: np.ndarray, pos: np.ndarray, r2: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Sum of ground-reflected isotropic Gaussian puffs [mg/m^3] at NED points pts (N,3) [m].
+
+    pos (K,3): x, y NED and unfolded altitude [m] (|altitude| is physical); r2 (K,) puff
+    variance [m^2]; mass (K,) [g]."""
+    n = pts.shape[0]
+    kp = pos.shape[0]
+    out = np.zeros(n)
+    inv = np.empty(kp)
+    norm = np.empty(kp)
+    for j in range(kp):
+        inv[j] = -0.5 / r2[j]
+        norm[j] = mass[j] * G_TO_MG / (TWO_PI_POW_1_5 * r2[j] * math.sqrt(r2[j]))
+    for i in range(n):
+        zq = -pts[i, 2]
+        acc = 0.0
+        for j in range(kp):
+            dx = pts[i, 0] - pos[j, 0]
+            dy = pts[i, 1] - pos[j, 1]
+            dh2 = dx * dx + dy * dy
+            zp = abs(pos[j, 2])
+            e = dh2 * inv[j]
+            # A puff whose horizontal factor is below e^-40 adds < 5e-18 of its peak: skipping
+            # it saves the two exp calls (most puffs are far from a point) at no visible cost.
+            if e < -40.0:
+                continue
+            dzm = zq - zp
+            dzp = zq + zp
+            acc += norm[j] * (math.exp(e + dzm * dzm * inv[j]) + math.exp(e + dzp * dzp * inv[j]))
+        out[i] = acc
+    return out
+
+
+class PuffPlume:
+    """Instantaneous puff (filament) plume, Farrell et al. (2002) style.
+
+    State: puff centres (x, y NED [m] and an *unfolded* altitude [m] whose absolute
+    value is the physical altitude: reflection at the ground, the puff analogue of the
+    image source), puff variances r^2 [m^2], masses [g], release times [s].
+    """
+
+    def __init__(
+        self,
+        config: PlumeConfig,
+        wind: WindLike,
+        seed: int | np.random.SeedSequence,
+        t0: float = 0.0,
+    ):
+        """config: plume configuration (validated, ValueError lists the problems);
+        wind: object with ``mean(t, pos)`` and ``velocity(t, positions)``;
+        seed: int or SeedSequence for every random process; t0: initial time [s]."""
+        check_config(config)
+        self.config = config
+        self._wind = wind
+        ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        ss_walk, ss_modes_h, ss_modes_v = ss.spawn(3)
+        self._rng = np.random.default_rng(ss_walk)
+        self._meander = MeanderField(
+            np.random.default_rng(ss_modes_h), np.random.default_rng(ss_modes_v)
+        )
+        # Each puff re-samples the meander every MEANDER_REFRESH_S, a 1/n_groups share of
+        # the puffs per substep (constant cost per step).
+        self._n_groups = max(1, round(MEANDER_REFRESH_S * config.update_rate_hz))
+        self._substep_count = 0
+        self._next_serial = 0
+        self._src = np.array([s.position_ned for s in config.sources], dtype=float)
+        self._puff_mass_g = np.array([s.rate_g_s / config.puff_rate_hz for s in config.sources])
+        self._n_released = np.zeros(len(config.sources), dtype=np.int64)
+        self._t = float(t0)
+        self._cy = BRIGGS_Y[config.stability]
+        self._cz = BRIGGS_Z[config.stability]
+        self._frozen_var = (
+            frozen_turbulence_variances(wind) if config.subtract_wind_turbulence else (0.0, 0.0)
+        )
+        if config.domain_min_ned is not None:
+            self._dom_lo: np.ndarray | None = np.asarray(config.domain_min_ned, dtype=float)
+            self._dom_hi: np.ndarray | None = np.asarray(config.domain_max_ned, dtype=float)
+        else:
+            self._dom_lo = self._dom_hi = None  # no domain: puffs are kept wherever they go
+        self._pos = np.zeros((0, 3))  # x, y NED, unfolded altitude (up) [m]
+        self._r2 = np.zeros(0)
+        self._mass = np.zeros(0)
+        self._t_rel = np.zeros(0)
+        self._serial = np.zeros(0, dtype=np.int64)
+        self._unit_meander = np.zeros((0, 3))
+        self.released_mass_g = 0.0
+        self.removed_domain_mass_g = 0.0
+        self.removed_cap_mass_g = 0.0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def t(self) -> float:
+        """Current plume time [s]."""
+        return self._t
+
+    @property
+    def puffs(self) -> np.ndarray:
+        """(K,4) array: x, y, z (NED, physical) [m] and r^2 [m^2] of every live puff."""
+        return np.column_stack(
+            [self._pos[:, 0], self._pos[:, 1], -np.abs(self._pos[:, 2]), self._r2]
+        )
+
+    @property
+    def puff_release_times(self) -> np.ndarray:
+        """(K,) release time [s] of every live puff (same order as ``puffs``)."""
+        return self._t_rel.copy()
+
+    @property
+    def mass_in_puffs_g(self) -> float:
+        """Mass currently carried by live puffs [g]."""
+        return float(self._mass.sum())
+
+    @property
+    def removed_mass_g(self) -> float:
+        """Mass removed at the domain edge or by the puff cap [g]."""
+        return self.removed_domain_mass_g + self.removed_cap_mass_g
+
+    def _ref_speed(self, t: float) -> tuple[np.ndarray, float]:
+        w = np.asarray(self._wind.mean(t, self._src[0]), dtype=float)
+        return w, max(math.hypot(w[0], w[1]), self.config.min_wind_speed_m_s)
+
+    # ------------------------------------------------------------------ dynamics
+    def step(self, t: float, dt: float) -> None:
+        """Advance the puffs from ``t`` to ``t + dt`` [s] (substeps <= 1/update_rate_hz)."""
+        if dt <= 0.0:
+            return
+        n_sub = max(1, math.ceil(dt * self.config.update_rate_hz - 1e-9))
+        h = dt / n_sub
+        for i in range(n_sub):
+            self._substep(t + i * h, h)
+        self._t = t + dt
+
+    def _release(self, t: float, h: float) -> None:
+        cfg = self.config
+        new_pos, new_t, new_m = [], [], []
+        for i, s in enumerate(cfg.sources):
+            if s.rate_g_s <= 0.0:
+                continue
+            # Release times start_s + k/puff_rate_hz that fall in [t, t+h) and < stop_s.
+            k0 = max(self._n_released[i], math.ceil((t - s.start_s) * cfg.puff_rate_hz - 1e-9))
+            k1 = math.ceil((min(t + h, s.stop_s) - s.start_s) * cfg.puff_rate_hz - 1e-9)
+            if k1 <= k0:
+                continue
+            n = k1 - k0
+            self._n_released[i] = k1
+            p = np.empty((n, 3))
+            p[:, :2] = self._src[i, :2]
+            p[:, 2] = -self._src[i, 2]
+            new_pos.append(p)
+            new_t.append(s.start_s + np.arange(k0, k1) / cfg.puff_rate_hz)
+            new_m.append(np.full(n, self._puff_mass_g[i]))
+        if not new_pos:
+            return
+        m = np.concatenate(new_m)
+        pos = np.concatenate(new_pos)
+        self.released_mass_g += float(m.sum())
+        self._serial = np.concatenate(
+            [self._serial, np.arange(self._next_serial, self._next_serial + len(m))]
+        )
+        self._next_serial += len(m)
+        # New puffs get their meander sample in this substep's refresh (see _substep).
+        self._unit_meander = np.concatenate([self._unit_meander, np.full((len(m), 3), np.nan)])
+        self._pos = np.concatenate([self._pos, pos])
+        self._t_rel = np.concatenate([self._t_rel, *new_t])
+        self._mass = np.concatenate([self._mass, m])
+        self._r2 = np.concatenate([self._r2, np.full(len(m), cfg.source_radius_m**2)])
+
+    def _substep(self, t: float, h: float) -> None:
+        self._release(t, h)
+        w_ref, u = self._ref_speed(t)
+        cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
+        cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
+        k = len(self._r2)
+        if k:
+            # The meander is smooth and nearly frozen in the frame the puffs ride in, so
+            # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S.
+            # (New puffs have a NaN cache and are sampled in the same pass.)
+            refresh = self._serial % self._n_groups == self._substep_count % self._n_groups
+            phys = self._pos.copy()
+            phys[:, 2] = -np.abs(phys[:, 2])
+            vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
+            growth = PUFF_GROWTH_SHARE * min(cal_y.small_scale_rate, cal_z.small_scale_rate)
+            walk_y = math.sqrt(max(cal_y.small_scale_rate - growth, 0.0) * h)
+            walk_z = math.sqrt(max(cal_z.small_scale_rate - growth, 0.0) * h)
+            scale = np.array([cal_y.meander_sigma, cal_y.meander_sigma, cal_z.meander_sigma])
+            noise = self._rng.standard_normal((k, 3))
+            mf = self._meander
+            _advance_puffs(
+                self._pos, self._r2, self._unit_meander, refresh, vel, noise, scale,
+                np.array([walk_y, walk_y, walk_z]), growth, h, mf.offset, mf.k, mf.phase, mf.amp,
+            )  # fmt: skip
+            self._remove()
+        self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
+        self._substep_count += 1
+
+    def _keep(self, mask: np.ndarray | slice) -> None:
+        self._pos = self._pos[mask]
+        self._r2 = self._r2[mask]
+        self._mass = self._mass[mask]
+        self._t_rel = self._t_rel[mask]
+        self._serial = self._serial[mask]
+        self._unit_meander = self._unit_meander[mask]
+
+    def _remove(self) -> None:
+        if self._dom_lo is not None:
+            phys = np.column_stack([self._pos[:, :2], -np.abs(self._pos[:, 2])])
+            inside = np.all((phys >= self._dom_lo) & (phys <= self._dom_hi), axis=1)
+            if not inside.all():
+                self.removed_domain_mass_g += float(self._mass[~inside].sum())
+                self._keep(inside)
+        excess = len(self._r2) - self.config.max_puffs
+        if excess > 0:
+            # Puffs are stored in release order, so the first ones are the oldest.
+            self.removed_cap_mass_g += float(self._mass[:excess].sum())
+            self._keep(slice(excess, None))
+
+    # ------------------------------------------------------------------ output
+    def concentration(self, points: np.ndarray) -> np.ndarray | float:
+        """Concentration [mg/m^3] at (N,3) NED points -> (N,), or (3,) -> float."""
+        pts = np.asarray(points, dtype=float)
+        single = pts.ndim == 1
+        pts = np.atleast_2d(pts)
+        out = _puff_concentration(np.ascontiguousarray(pts), self._pos, self._r2, self._mass)
+        return float(out[0]) if single else out
+
+    def slice_grid(
+        self, z: float, x_range: tuple[float, float], y_range: tuple[float, float], n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Horizontal slice at NED depth ``z`` [m]: returns xs (n,), ys (n,), C (n,n)
+        with C[i, j] the concentration [mg/m^3] at (xs[i], ys[j], z)."""
+        return concentration_slice(self.concentration, z, x_range, y_range, n)
+
+
+def make_plume(
+    config: PlumeConfig, wind: WindLike, seed: int | np.random.SeedSequence, t0: float = 0.0
+) -> PuffPlume | GaussianPlume:
+    """Build the plume model named by ``config.model`` (ValueError if config is invalid)."""
+    check_config(config)
+    if config.model == "gaussian":
+        return GaussianPlume(config, wind, seed, t0)
+    return PuffPlume(config, wind, seed, t0)

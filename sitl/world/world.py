@@ -1,0 +1,339 @@
+"""The world: the vehicle's physics, the wind, the plume and the sensors, stepped with rotor commands.
+
+:class:`World` is what a real vehicle experiences and nothing more: it takes rotor commands and
+returns sensor samples (:meth:`World.drain`) and truth (the ``position`` ... properties, truth
+rows). It has no autopilot inside. Something that produces rotor commands is a :class:`Pilot`:
+
+- :class:`RotorCommand`: commanded rotor speeds held between updates, set from outside (an
+  external controller, PX4 over HIL, a test);
+- the built-in autopilot (:class:`sitl.autopilot.builtin.BuiltinAutopilot`), which computes its
+  rotor commands inside a fused numba loop for speed, through the same :func:`physics_tick`.
+
+Timing: physics runs at ``scenario.physics_rate_hz`` (500 Hz by default, RK4). At every slow tick
+(``scenario.mode_rate_hz``, 50 Hz) the pilot's slow logic runs first, then the low-rate sensors
+(GNSS, barometer, magnetometer) and the plume and chemical sensor; the IMU and ESC samples come
+from the truth rows the physics loop writes at the IMU rate, turned into measurements in
+vectorized batches. Same scenario, seed and commands give the same trajectory bit for bit,
+however the steps are grouped.
+
+Seeding: ``SeedSequence(seed).spawn(3)`` = (wind, sensors, extra); the plume is spawned from
+``extra``. Units SI; NED world, FRD body; wind = air-mass velocity NED.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from sitl.scenario import Scenario
+from sitl.world.dynamics import N_STATE
+from sitl.world.kernel import (
+    FLAG_CRASHED,
+    FLAG_ON_GROUND,
+    N_TRUTH,
+    T_RATES,
+    T_ROTORS,
+    T_SPECIFIC_FORCE,
+    advance_commanded,
+)
+from sitl.world.plume.part import CHEM_OUTPUT, PlumePart
+from sitl.world.sensors import BaroSample, GnssSample, MagSample, SensorSuite
+from sitl.world.wind.kernel import WindKernel
+from sitl.world.wind.model import WindModel, make_wind
+from vehicle.frames import euler_to_quat, quat_to_dcm, tilt_angle
+from vehicle.params import VehicleParams, load_vehicle
+
+#: Sensor samples kept between two ``drain()`` calls, per sensor (the oldest are dropped).
+SENSOR_QUEUE_MAXLEN = 100_000
+
+
+@dataclass
+class SensorOutputs:
+    """Sensor samples since the last :meth:`World.drain` (bounded queues, oldest dropped)."""
+
+    maxlen: int = SENSOR_QUEUE_MAXLEN
+    imu: deque[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=deque)  # (t, accel FRD, gyro FRD)
+    esc: deque[tuple[float, np.ndarray]] = field(default_factory=deque)  # (t, rotor speeds rad/s (4,))
+    gnss: deque[GnssSample] = field(default_factory=deque)
+    baro: deque[BaroSample] = field(default_factory=deque)
+    mag: deque[MagSample] = field(default_factory=deque)
+
+    def __post_init__(self) -> None:
+        for name in ("imu", "esc", "gnss", "baro", "mag"):
+            setattr(self, name, deque(maxlen=self.maxlen))
+
+
+@dataclass
+class PhysicsArrays:
+    """The arrays the physics loop works on in place: the explicit boundary between the world and
+    a pilot that runs its own compiled loop (the built-in autopilot's fused path).
+
+    x: state (17,): position NED m, velocity NED m/s, quaternion body->NED, rates FRD rad/s,
+        rotor speeds rad/s. flags: (4,) [on_ground, crashed, touchdown speed m/s, collisions].
+    params: the vehicle parameter array; crash_speed: touchdown speed that is a crash, m/s.
+    rows: truth-row buffer (one slow tick of IMU samples); fb: specific force at the last tick.
+    imu_div: physics ticks per IMU sample; dt: physics step, s.
+    """
+
+    x: np.ndarray
+    flags: np.ndarray
+    params: np.ndarray
+    crash_speed: float
+    rows: np.ndarray
+    fb: np.ndarray
+    imu_div: int
+    dt: float
+
+
+class Pilot(Protocol):
+    """A source of rotor commands for the world."""
+
+    def on_slow_tick(self, world: World) -> None:
+        """Slow logic at each slow tick (``mode_rate_hz``), before the world's slow sensors."""
+        ...
+
+    def advance(self, world: World, n: int) -> int:
+        """Run ``n`` physics ticks from ``world.tick`` (not crossing a slow tick) with this pilot's
+        rotor commands on ``world.phys``; return the number of truth rows written."""
+        ...
+
+
+class RotorCommand:
+    """Commanded rotor speeds (rad/s, the vehicle's rotor order) held until the next :meth:`set`."""
+
+    def __init__(self, speeds_rad_s: np.ndarray | None = None) -> None:
+        self.speeds = np.zeros(4) if speeds_rad_s is None else np.array(speeds_rad_s, dtype=float)
+
+    def set(self, speeds_rad_s: np.ndarray) -> None:
+        """New command (4,), rad/s; NaN or negative values are refused (ValueError)."""
+        w = np.asarray(speeds_rad_s, dtype=float)
+        if w.shape != (4,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+            raise ValueError(f"rotor command must be 4 finite speeds >= 0 rad/s, got {speeds_rad_s!r}")
+        self.speeds[:] = w
+
+    def on_slow_tick(self, world: World) -> None:
+        pass
+
+    def advance(self, world: World, n: int) -> int:
+        ph = world.phys
+        return advance_commanded(n, world.tick, ph.dt, ph.x, self.speeds, ph.flags, ph.params, ph.crash_speed,
+                                 ph.imu_div, ph.rows, ph.fb, world.wind_kernel)  # fmt: skip
+
+
+class World:
+    """The simulated world of a :class:`~sitl.scenario.Scenario` (see the module docstring).
+
+    Args:
+        scenario: wind, turbulence, start, sensors, plume.
+        seed: overrides ``scenario.seed``; every random process is spawned from it.
+        vehicle: overrides the scenario's vehicle file.
+        record_truth: keep every truth row (IMU rate) in memory (:meth:`truth_array`).
+    """
+
+    def __init__(self, scenario: Scenario, seed: int | None = None, vehicle: VehicleParams | None = None,
+                 record_truth: bool = False) -> None:  # fmt: skip
+        self.scenario = scenario
+        self.seed = scenario.seed if seed is None else int(seed)
+        s_wind, s_sensors, s_extra = np.random.SeedSequence(self.seed).spawn(3)
+        self.vehicle = vehicle or load_vehicle(scenario.vehicle)
+        self.tick = 0
+        rate = scenario.physics_rate_hz
+        sc = scenario.sensors
+        dt = 1.0 / rate
+        imu_div = round(rate / sc.imu.rate_hz)
+        self.slow_div = round(rate / scenario.mode_rate_hz)
+        self.esc_every = max(1, round(sc.imu.rate_hz / sc.esc.rate_hz))
+        self.gnss_div = round(rate / sc.gnss.rate_hz)
+        self.baro_div = round(rate / sc.baro.rate_hz)
+        self.mag_div = round(rate / sc.mag.rate_hz)
+        self.wind: WindModel = make_wind(scenario.wind_model, scenario.wind, scenario.turbulence,
+                                         dict(scenario.wind_options), s_wind)  # fmt: skip
+        kernel = self.wind.kernel()
+        self._python_wind = kernel is None
+        # A model without a numba fast path is sampled in Python once per tick into this held kernel.
+        self.wind_kernel: WindKernel = kernel if kernel is not None else _held_wind_kernel()
+        self.sensors = SensorSuite(sc, s_sensors)
+        self.outputs = SensorOutputs()
+        x = np.zeros(N_STATE)
+        st = scenario.start
+        x[0:3] = st.position_ned
+        x[6:10] = euler_to_quat(0.0, 0.0, math.radians(st.yaw_deg))
+        flags = np.zeros(4)
+        flags[FLAG_ON_GROUND] = 0.0 if st.airborne else 1.0
+        self.phys = PhysicsArrays(x=x, flags=flags, params=self.vehicle.as_array(),
+                                  crash_speed=float(self.vehicle.crash_speed_m_s),
+                                  rows=np.zeros((self.slow_div // imu_div + 2, N_TRUTH)), fb=np.zeros(3),
+                                  imu_div=imu_div, dt=dt)  # fmt: skip
+        self._imu_count = 0
+        self.last_truth = np.zeros(N_TRUTH)
+        self.truth_log: list[np.ndarray] | None = [] if record_truth else None
+        self.plume: PlumePart | None = None
+        if scenario.plume is not None:
+            self.plume = PlumePart(scenario.plume, self.wind, s_extra, scenario.mode_rate_hz)
+
+    # ------------------------------------------------------------------ truth
+    @property
+    def dt(self) -> float:
+        """Physics step, s."""
+        return self.phys.dt
+
+    @property
+    def t(self) -> float:
+        """Simulation time, s."""
+        return self.tick * self.phys.dt
+
+    @property
+    def x(self) -> np.ndarray:
+        """The state vector (17,) (see :class:`PhysicsArrays`); the array itself, not a copy."""
+        return self.phys.x
+
+    @property
+    def position(self) -> np.ndarray:
+        """NED position, m."""
+        return self.phys.x[0:3].copy()
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """NED ground velocity, m/s."""
+        return self.phys.x[3:6].copy()
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """Attitude quaternion [w, x, y, z], body FRD -> NED."""
+        return self.phys.x[6:10].copy()
+
+    @property
+    def rates(self) -> np.ndarray:
+        """Body rates (FRD), rad/s."""
+        return self.phys.x[10:13].copy()
+
+    @property
+    def rotor_speeds(self) -> np.ndarray:
+        """Rotor speeds, rad/s."""
+        return self.phys.x[13:17].copy()
+
+    @property
+    def wind_at_vehicle(self) -> np.ndarray:
+        """True air-mass velocity at the vehicle now (mean + turbulence), NED, m/s."""
+        return np.asarray(self.wind.velocity(self.t, self.phys.x[0:3]), dtype=float)
+
+    @property
+    def on_ground(self) -> bool:
+        return bool(self.phys.flags[FLAG_ON_GROUND])
+
+    @property
+    def crashed(self) -> bool:
+        return bool(self.phys.flags[FLAG_CRASHED])
+
+    @property
+    def specific_force(self) -> np.ndarray:
+        """True specific force (FRD, m/s^2) at the last tick."""
+        return self.phys.fb.copy()
+
+    @property
+    def tilt_rad(self) -> float:
+        return float(tilt_angle(self.phys.x[6:10]))
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, n: int, pilot: Pilot, after_slow_tick: Callable[[], None] | None = None) -> None:
+        """Advance ``n`` physics ticks with the rotor commands of ``pilot``; ``after_slow_tick`` runs
+        at every slow tick after the world's own slow sensors and plume."""
+        if n < 0:
+            raise ValueError(f"step(n={n}): n must be >= 0")
+        while n > 0:
+            tick = self.tick
+            if tick % self.slow_div == 0:
+                pilot.on_slow_tick(self)
+                self._slow_tick()
+                if after_slow_tick is not None:
+                    after_slow_tick()
+            k = min(n, self.slow_div - tick % self.slow_div)
+            nrow = self._advance(pilot, k)
+            if nrow:
+                self._imu_batch(self.phys.rows[:nrow])
+            self.tick += k
+            n -= k
+
+    def _advance(self, pilot: Pilot, k: int) -> int:
+        if not self._python_wind:
+            return pilot.advance(self, k)
+        # A Python wind model: one tick at a time, the wind sampled in Python and held over the tick.
+        held = self.wind_kernel.sched_vel
+        nrow = 0
+        rows = self.phys.rows
+        for _ in range(k):
+            held[0, :] = self.wind.velocity(self.t, self.phys.x[0:3])
+            self.phys.rows = rows[nrow:]
+            nrow += pilot.advance(self, 1)
+            self.tick += 1
+        self.phys.rows = rows
+        self.tick -= k
+        return nrow
+
+    def _slow_tick(self) -> None:
+        t = self.t
+        x = self.phys.x
+        tick = self.tick
+        out = self.outputs
+        if tick % self.gnss_div == 0:
+            self.sensors.gnss_measure(t, x[0:3], x[3:6])
+        for s in self.sensors.gnss_deliver(t):
+            out.gnss.append(s)
+        if tick % self.baro_div == 0:
+            out.baro.append(self.sensors.baro(t, x[0:3]))
+        if tick % self.mag_div == 0:
+            out.mag.append(self.sensors.mag(t, quat_to_dcm(x[6:10])))
+        if self.plume is not None:
+            self.plume.on_slow_tick(tick // self.slow_div, t, x[0:3])
+
+    def _imu_batch(self, rows: np.ndarray) -> None:
+        acc, gyr = self.sensors.imu(rows[:, T_SPECIFIC_FORCE], rows[:, T_RATES])
+        out = self.outputs
+        for i in range(rows.shape[0]):
+            out.imu.append((rows[i, 0], acc[i], gyr[i]))
+        k0 = self._imu_count
+        sel = [i for i in range(rows.shape[0]) if (k0 + i) % self.esc_every == 0]
+        if sel:
+            meas = self.sensors.esc(rows[sel][:, T_ROTORS])
+            for i, m in zip(sel, meas, strict=True):
+                out.esc.append((rows[i, 0], m))
+        self._imu_count += rows.shape[0]
+        self.last_truth = rows[-1].copy()
+        if self.truth_log is not None:
+            self.truth_log.append(rows.copy())
+
+    # ------------------------------------------------------------------ outputs
+    def drain(self) -> dict[str, list[Any]]:
+        """All sensor samples since the previous call, by sensor name, oldest first
+        (``imu``, ``esc``, ``gnss``, ``baro``, ``mag``, and ``chem`` with a plume)."""
+        out: dict[str, list[Any]] = {}
+        for name in ("imu", "esc", "gnss", "baro", "mag"):
+            q = getattr(self.outputs, name)
+            out[name] = list(q)
+            q.clear()
+        if self.plume is not None:
+            out[CHEM_OUTPUT] = list(self.plume.readings)
+            self.plume.readings.clear()
+        return out
+
+    def summary(self) -> dict[str, object]:
+        """Figures of the world's parts for ``windseek sim --json`` (the plume's)."""
+        return self.plume.summary() if self.plume is not None else {}
+
+    def truth_array(self) -> np.ndarray:
+        """All recorded truth rows (needs ``record_truth=True``), shape (K, N_TRUTH)."""
+        if self.truth_log is None:
+            raise RuntimeError("record_truth=True is needed for truth_array()")
+        if not self.truth_log:
+            return np.zeros((0, N_TRUTH))
+        return np.concatenate(self.truth_log)
+
+
+def _held_wind_kernel() -> WindKernel:
+    """A uniform, turbulence-free kernel whose one velocity is overwritten before every tick."""
+    return WindKernel(np.array([-np.inf]), np.zeros((1, 3)), False, 0.1, 1.0, False, False, 1.0, np.zeros((0, 3)))

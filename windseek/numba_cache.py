@@ -1,0 +1,60 @@
+"""Where numba keeps its compiled kernels: one explicit call, made by every entry point.
+
+Numba invalidates a cached kernel only when the file that defines it changes, not when a function
+or constant it imports from another module does, so after an edit elsewhere a kernel could keep
+stale code. :func:`configure` points numba at a cache folder keyed by the source of every kernel
+module of the project, so any edit to kernel code starts a fresh cache (compiled once, then reused).
+
+Call it before importing any module with numba kernels (numba decides where a kernel's cache
+lives when the kernel is defined): the ``windseek`` command line, the test suite
+(``tests/conftest.py``), the benchmarks and the campaign workers do. A program that skips it still
+works: numba then caches next to the sources, with the staleness caveat above.
+``NUMBA_CACHE_DIR`` in the environment wins over both.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+#: Packages whose kernels are cached (files that mention numba).
+KERNEL_PACKAGES = ("sitl", "vehicle", "estimator", "mission")
+_configured: str | None = None
+
+
+def cache_dir(root: Path | None = None) -> Path:
+    """The cache folder for the current kernel sources: ``$XDG_CACHE_HOME/windseek/numba/<digest>``."""
+    root = root or Path(__file__).resolve().parent.parent
+    digest = hashlib.sha1()
+    for pkg in KERNEL_PACKAGES:
+        folder = root / pkg
+        if folder.is_dir():
+            for f in sorted(folder.rglob("*.py")):
+                text = f.read_bytes()
+                if b"numba" in text:  # only kernel modules: editing plain Python recompiles nothing
+                    digest.update(f.relative_to(root).as_posix().encode() + text)
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "windseek" / "numba" / digest.hexdigest()[:16]
+
+
+def configure() -> str:
+    """Set numba's cache folder (unless ``NUMBA_CACHE_DIR`` is already set) and return it. Warns on
+    stderr when a kernel module was imported before (its kernels then cache elsewhere)."""
+    global _configured
+    if _configured is not None:  # once per process: the entry point that came first decided
+        return _configured
+    if "NUMBA_CACHE_DIR" not in os.environ:
+        os.environ["NUMBA_CACHE_DIR"] = str(cache_dir())
+    path = os.environ["NUMBA_CACHE_DIR"]
+    _configured = path
+    if "numba" in sys.modules:  # numba reads its config at import: update the live value too
+        import numba
+
+        numba.config.CACHE_DIR = path  # type: ignore[attr-defined]
+    early = sorted(m for m in sys.modules if m.split(".")[0] in KERNEL_PACKAGES and "." in m)
+    if any(m.startswith(("sitl.world", "sitl.autopilot", "vehicle.", "estimator.")) for m in early):
+        print(f"windseek: numba cache configured after kernel modules were imported ({early[0]}, ...)",
+              file=sys.stderr)  # fmt: skip
+    return path
