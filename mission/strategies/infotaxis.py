@@ -19,11 +19,12 @@ reading is expected to tell the most about the source:
   and the vehicle flies the best at ``speed_m_s``. Far from the source the most informative
   readings lie where the posterior is split between "the source is upwind of here" and "it is
   behind": the vehicle goes upwind along the plume; near it, around the source.
-- **Declaration.** When the ``credible_level`` (90 %) disc about the posterior mean has a radius
-  of at most ``declare_radius_m``, the mean is declared, with that radius as the credible region
-  and, as confidence, the posterior probability that the source lies within
-  ``success_radius_m`` of it. The vehicle flies over the point, descends and stops, as the other
-  strategies do.
+- **Declaration.** The ``credible_level`` (90 %) credible region is a disc whose centre is moved
+  from the posterior mean toward the mode (``SourcePosterior.credible_disc``). When the
+  posterior probability that the source lies within ``success_radius_m`` (3 m) of that centre --
+  the confidence -- reaches ``declare_confidence`` (0.9), and the disc's radius is at most
+  ``declare_radius_m``, the centre is declared with that radius and that confidence. The vehicle
+  flies over the point, descends and stops, as the other strategies do.
 
 Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any
 direction), the speed ``assumed_wind_m_s``; the hits themselves must then tell the direction.
@@ -137,13 +138,15 @@ class Infotaxis(BaseStrategy):
         if self.post.n_updates != self._disc_at:  # the posterior only changes with a bin
             self._disc_at = self.post.n_updates
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
+            self.confidence = self.post.mass_within(self._center, p.success_radius_m)
         center = self._center
-        if self.credible_radius <= p.declare_radius_m:
+        if self.confidence >= p.declare_confidence and self.credible_radius <= p.declare_radius_m:
             self._declare_posterior(obs.t, center)
             return self._descend(obs, u_vec)
         if replan:
             self._plan(obs, center, downwind, speed)
-        v_ne = self._speed(obs, center) * heading_vec(self.heading)
+        heading = 0.0 if self.heading is None else self.heading  # _plan() has set it
+        v_ne = self._speed(obs, center) * heading_vec(heading)
         pos_sp = self._carrot(obs, v_ne, dt, p.altitude_m)
         return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
                         yaw_rad=heading_of(u_vec), state="search",
@@ -229,10 +232,8 @@ class Infotaxis(BaseStrategy):
 
     # ------------------------------------------------------------------ declaration
     def _declare_posterior(self, t: float, center: np.ndarray) -> None:
-        p = self.p
         self.declared = np.array([center[0], center[1], self.start[2] - self.post.mean_height()])
         self.t_declared = t
-        self.confidence = self.post.mass_within(center, p.success_radius_m)
         self.diag = {"credible_radius_m": self.credible_radius, "n_hits": float(self.n_hits),
                      "n_misses": float(self.n_misses), "n_resamples": float(self.post.n_resamples),
                      "source_height_m": self.post.mean_height(),

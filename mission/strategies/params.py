@@ -200,7 +200,9 @@ class InfotaxisParams(CommonParams):
     plan_points: int = _p(6, 1, 20, "readings predicted along a candidate move")
     jitter: float = _p(0.1, 0.0, 1.0, "kernel width after resampling, times the posterior spread per dimension")
     credible_level: float = _p(0.9, 0.5, 0.999, "probability of the declared credible region")
-    declare_radius_m: float = _p(2.5, 0.1, 100.0, "declare when the credible region's radius is below this [m]")
+    declare_confidence: float = _p(0.9, 0.5, 0.9999, "declare when the posterior probability that the source "
+                                   "lies within success_radius_m of the credible disc's centre reaches this")
+    declare_radius_m: float = _p(3.0, 0.1, 100.0, "... and the credible region's radius is at most this [m]")
     success_radius_m: float = _p(3.0, 0.1, 100.0, "confidence = posterior probability that the source lies "
                                  "within this distance of the declared point [m]")
 
