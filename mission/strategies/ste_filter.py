@@ -110,13 +110,13 @@ class SourcePosterior:
         self.window_s = float(window_s)
         self.t_window = math.nan
         self.rho = float(persistence)
-        self.prior: PriorBox | None = None
-        self.main: _Cloud | None = None
+        self._prior: PriorBox | None = None
+        self._main: _Cloud | None = None
         self.n_updates = 0
         self.n_resamples = 0
 
     # ------------------------------------------------------------------ prior
-    def _draw_prior(self, n: int) -> tuple[np.ndarray, ...]:
+    def _draw_prior(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rng, box = self.rng, self.prior
         if box.delta_sigma is None:
             a = rng.uniform(-box.ahead, box.ahead, n)
@@ -136,12 +136,24 @@ class SourcePosterior:
 
     def init_prior(self, box: PriorBox) -> None:
         """Draw the particles from the prior ``box``; equal weights."""
-        self.prior = box
-        self.main = _Cloud(*self._draw_prior(self.n), len(self.nodes))
+        self._prior = box
+        self._main = _Cloud(*self._draw_prior(self.n), len(self.nodes))
 
     @property
     def ready(self) -> bool:
-        return self.prior is not None
+        return self._prior is not None
+
+    @property
+    def prior(self) -> PriorBox:
+        if self._prior is None:
+            raise RuntimeError("SourcePosterior: init_prior() must be called first")
+        return self._prior
+
+    @property
+    def main(self) -> _Cloud:
+        if self._main is None:
+            raise RuntimeError("SourcePosterior: init_prior() must be called first")
+        return self._main
 
     # views of the main set, for the summaries
     pn = property(lambda self: self.main.pn)
@@ -266,7 +278,9 @@ class SourcePosterior:
     # ------------------------------------------------------------------ planning
     def planning_set(self, m: int) -> tuple[np.ndarray, ...]:
         """``m`` equally weighted particles drawn systematically from the posterior:
-        (n, e, h, q, cos delta, sin delta)."""
+        (n, e, h, q, cos delta, sin delta). (A fixed offset instead of a random one, so that the
+        same posterior gives the same set, made the moves worse on the development seeds: reach
+        ratio 2.32 instead of 1.66.)"""
         c = self.main
         idx = _systematic(c.w, min(m, self.n), self.rng)
         return c.pn[idx], c.pe[idx], c.h[idx], c.q[idx], c.cd[idx], c.sd[idx]
