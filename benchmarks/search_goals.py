@@ -8,7 +8,7 @@ the successful trials; for infotaxis the share of declarations whose 90 % credib
 the source and the mean stated confidence; failures by cause.
 
     python benchmarks/search_goals.py --cells infotaxis:open-field:estimated,surge-cast:open-field:oracle,...
-        [--trials 50] [--seed 1000] [--jobs 1] [--cache benchmarks/.search_goals.json] [--no-write]
+        [--trials 50] [--seed 1000] [--jobs 1] [--cache benchmarks/search_goals_cells.json] [--no-write]
 
 A cell is ``strategy:scenario:wind``. ``--cache`` keeps every finished cell (JSON) and the table
 is built from all cached cells, so a long table runs in pieces; a cell is keyed by strategy,
@@ -70,7 +70,7 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=50)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--cache", default=str(Path(__file__).with_name(".search_goals.json")))
+    ap.add_argument("--cache", default=str(Path(__file__).with_name("search_goals_cells.json")))
     ap.add_argument("--no-write", action="store_true", help="print only, do not edit benchmarks/README.md")
     args = ap.parse_args()
     cache = Path(args.cache)
@@ -91,8 +91,8 @@ def main() -> None:
         print(table([s]).splitlines()[-1], flush=True)
     text = table(cached)
     commands = sorted({c["command"] for c in cached})
-    block = "\n".join([BEGIN, "", text, "", "Produced by (cells cached in `benchmarks/.search_goals.json`):", "",
-                       *[f"    {c}" for c in commands], "", END])
+    note = "Produced by (every cell is kept in `benchmarks/search_goals_cells.json`):"
+    block = "\n".join([BEGIN, "", text, "", note, "", *[f"    {c}" for c in commands], "", END])
     print(text)
     if not args.no_write:
         readme = Path(__file__).with_name("README.md")
