@@ -32,7 +32,7 @@ from mission import runners  # noqa: F401  (the runner package must load before 
 from mission.evaluate import run_batch
 from mission.runners import inprocess
 from mission.strategies import STRATEGIES, WindInfo
-from mission.strategies.base import Observation
+from mission.strategies.base import Observation, Setpoint
 from mission.strategies.params import PARAM_CLASSES
 from sitl.scenario import load_scenario
 
@@ -45,8 +45,8 @@ def _rotated(cls: type, deg: float) -> type:
     a = math.radians(deg)
     rot = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
 
-    class Rotated(cls):  # type: ignore[misc, valid-type]
-        def update(self, obs: Observation):  # type: ignore[no-untyped-def]
+    class Rotated(cls):
+        def update(self, obs: Observation) -> Setpoint:
             w = obs.wind
             if w is not None:
                 cov = None if w.cov_ned is None else rot @ w.cov_ned @ rot.T
@@ -104,9 +104,12 @@ def main() -> None:
             scenario = scenario_for(case, Path(tmp))
             strat = name if case == "dir20" else args.strategy
             res = run_batch(scenario, strat, args.wind, args.trials, seed=args.seed, jobs=args.jobs, label=case)
-            srcs = np.array([s["position_ned"] for s in load_scenario(scenario).plume["sources"]], dtype=float)[:, 0:2]
+            setup = load_scenario(scenario).plume
+            if setup is None:
+                raise SystemExit(f"scenario {scenario!r} has no [plume] table")
+            srcs = np.array([s.position_ned for s in setup.plume.sources], dtype=float)[:, 0:2]
             decl = [r for r in res if r.declared_ned is not None]
-            errs = [np.hypot(*(srcs - np.asarray(r.declared_ned[0:2])).T) for r in decl]
+            errs = [np.hypot(*(srcs - np.asarray(r.declared_ned, dtype=float)[0:2]).T) for r in decl]
             near = [float(e.min()) for e in errs]
             which = [int(np.argmin(e)) for e in errs]
             ok = [e <= 3.0 for e in near]
