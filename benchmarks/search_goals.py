@@ -1,10 +1,11 @@
 """Issue 19 search table: every strategy with both path measures, per scenario and wind mode.
 
 Cells: success (declared within the strategy's success radius: 3 m for infotaxis, 5 m for the
-bio-inspired strategies) and the shares declared within 3 m and within 5 m; the declare ratio
-(path until the declaration / start distance) and the reach ratio (path until the vehicle first
-came within 2 m of the source / start distance; infinite if it never did), both medians over
-the successful trials; for infotaxis the share of declarations whose 90 % credible region held
+bio-inspired strategies; with its 95 % Wilson score interval) and the shares declared within 3 m
+and within 5 m; the declare ratio (path until the declaration / start distance) and the reach
+ratio (path until the vehicle first came within 2 m of the source / start distance; infinite if
+it never did), both medians over the successful trials; the median time to declaration
+(successful trials); for infotaxis the share of declarations whose 90 % credible region held
 the source and the mean stated confidence; failures by cause.
 
     python benchmarks/search_goals.py --cells infotaxis:open-field:estimated,surge-cast:open-field:oracle,...
@@ -43,21 +44,33 @@ def _pct(v: float) -> str:
     return "-" if v != v else f"{100 * v:.0f}"
 
 
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval (95 % for z = 1.96) of a success share k / n."""
+    if n == 0:
+        return math.nan, math.nan
+    p, z2 = k / n, z * z
+    centre = (p + z2 / (2 * n)) / (1 + z2 / n)
+    half = z * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
 def table(cells: list[dict]) -> str:
     """The markdown table of the cached cells."""
     srank = {s: i for i, s in enumerate(("infotaxis", "surge-cast", "zigzag", "anemotaxis"))}
     wrank = {w: i for i, w in enumerate(("estimated", "oracle", "none"))}
     cells = sorted(cells, key=lambda c: (ORDER.index(c["scenario"]) if c["scenario"] in ORDER else 99,
                                          c["scenario"], srank.get(c["strategy"], 9), wrank.get(c["wind"], 9)))
-    lines = ["| scenario | strategy | wind | seeds | trials | success % (radius) | within 3 m % | within 5 m % "
-             "| declare ratio | reach ratio (2 m) | never within 2 m | 90 % region held % | confidence | t median s "
-             "| failures |",
+    lines = ["| scenario | strategy | wind | seeds | trials | success % [95 % CI] (radius) | within 3 m % "
+             "| within 5 m % | declare ratio | reach ratio (2 m) | never within 2 m | 90 % region held % | confidence "
+             "| t median s | failures |",
              "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for s in cells:
         fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "-"
+        lo, hi = wilson(s["successes"], s["trials"])
         lines.append(
             f"| {s['scenario']} | {s['strategy']} | {s['wind']} | {s['seed0']}.. | {s['trials']} | "
-            f"{_pct(s['success_rate'])} ({s['success_radius_m']:g} m) | {_pct(s['within_3m_rate'])} | "
+            f"{_pct(s['success_rate'])} [{_pct(lo)}-{_pct(hi)}] ({s['success_radius_m']:g} m) | "
+            f"{_pct(s['within_3m_rate'])} | "
             f"{_pct(s['within_5m_rate'])} | {_f(s['path_ratio_median'])} | {_f(s['reach_ratio_median'])} | "
             f"{s['never_reached']} | {_pct(s['credible_coverage'])} | {_f(s['confidence_mean'])} | "
             f"{_f(s['time_median_s'], 0)} | {fails} |")
