@@ -28,12 +28,14 @@ import numpy as np
 from mission.strategies import params_from_table
 from mission.strategies.base import Observation, WindInfo
 from mission.strategies.infotaxis import Infotaxis
+from mission.strategies.params import InfotaxisParams
 from mission.strategies.ste_model import detection_prob
 
 
 def _drive(n: int, plan_particles: int, seconds: float = 30.0) -> Infotaxis:
     """An Infotaxis strategy after ``seconds`` of a kinematic approach up a model plume."""
     p = params_from_table("infotaxis", {"infotaxis": {"n_particles": n, "plan_particles": plan_particles}})
+    assert isinstance(p, InfotaxisParams)
     s = Infotaxis()
     s.reset(np.zeros(3), p, seed=1)
     rng = np.random.default_rng(1)
