@@ -252,6 +252,44 @@ def test_burst_met_in_passing_is_not_declared():
     assert "descend" in run(0.0)
 
 
+def test_anemotaxis_recovers_a_lost_plume_then_gives_up():
+    """Anemotaxis that lost the plume sideways casts crosswind back downwind of its last hits
+    (state ``recover``) instead of flying upwind to the fence, and, the plume gone for good, gives
+    up after ``give_up_s``: done, nothing declared."""
+    s = make_strategy("anemotaxis")
+    p = params_from_table("anemotaxis", {"anemotaxis": {"give_up_s": 40.0}})
+    s.reset(np.zeros(3), p, seed=3)
+    pos = np.array([0.0, 0.0, -p.altitude_m])
+    states, path = [], []
+    sp = None
+    for k in range(1500):
+        # Hits for the first 8 s (a plume crossed near the start), then nothing ever again.
+        c = 2.0 + (k % 2) if k < 80 else 0.0
+        sp = s.update(Observation(t=k * 0.1, position_ned=pos.copy(), velocity_ned=np.zeros(3), chem_mg_m3=c,
+                                  detected=c > 0.0, chem_new=True, wind=wind_north()))
+        states.append(sp.state)
+        path.append(pos[0:2].copy())
+        if sp.done:
+            break
+        pos[0:2] += sp.velocity_ned[0:2] * 0.1
+    assert "recover" in states and "upwind" in states
+    assert sp.done and sp.state == "give-up" and sp.declared_source_ned is None
+    P = np.asarray(path)
+    last_hit_n = P[79, 0]
+    # The cast went back downwind of the last hit and swept crosswind; it never ran off upwind.
+    assert P[:, 0].max() < last_hit_n + 20.0 and P[-1, 0] < last_hit_n
+    assert np.ptp(P[80:, 1]) > 2 * p.recover_half_width_m
+    assert (len(states) - 80) * 0.1 == pytest.approx(p.give_up_s, abs=1.0)
+
+
+def test_anemotaxis_without_a_hit_gives_up_before_the_fence():
+    s = make_strategy("anemotaxis")
+    p = params_from_table("anemotaxis", {"anemotaxis": {"max_range_m": 50.0}})
+    sp, t, pos = fly(s, p, wind_north(), t_end=60.0, start_east=40.0)  # beside the synthetic plume
+    assert sp.done and sp.state == "give-up" and sp.declared_source_ned is None
+    assert float(np.hypot(*pos[0:2])) == pytest.approx(50.0, abs=1.0) and t < 20.0
+
+
 def test_surge_cast_without_wind_declares_something():
     """`none`: the axis comes from the concentration gradient; the strategy must run and stop
     (the quality is what the benchmark table measures)."""

@@ -110,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         d = res.declared_ned
         where = f"N {d[0]:.1f} E {d[1]:.1f} D {d[2]:.1f} m" if d else "none"
+        if d and math.isfinite(res.credible_radius_m):
+            where += f", 90 % within {res.credible_radius_m:.1f} m"
         print(f"{res.strategy} with {res.wind} wind: cause {res.cause}; declared source {where} "
               f"(confidence {res.confidence:.2f}); time {res.time_s:.1f} s; path {res.path_m:.1f} m; "
               f"landed {res.landed}, disarmed {res.disarmed}")

@@ -36,8 +36,14 @@ from mission.wind_source import make_wind_source
 from sitl.scenario import Scenario, load_scenario
 from sitl.simulation import Simulation
 
-#: A declaration within this horizontal distance of the true source is a success [m].
+#: A declaration within this horizontal distance of the true source is a success [m] (the
+#: bio-inspired strategies' tables; ``SUCCESS_RADIUS_BY_STRATEGY`` overrides it per strategy).
 SUCCESS_RADIUS_M = 5.0
+#: Success radius of the strategies that claim a tighter localization (issue 19: infotaxis) [m].
+SUCCESS_RADIUS_BY_STRATEGY = {"infotaxis": 3.0}
+#: The vehicle has *reached* the source once it comes within this horizontal distance [m]
+#: (``reach_path_m``; issue 19's path measure, separate from the success radius).
+REACH_RADIUS_M = 2.0
 #: The take-off must end within this many simulated seconds.
 TAKEOFF_TIMEOUT_S = 30.0
 #: Loop abort causes and the trial failure cause each one scores as.
@@ -49,21 +55,25 @@ _CAUSE = {"time-limit": "timeout", "takeoff-failed": "takeoff", "geofence": "geo
 #: at 250 Hz, 6.4 deg at 125 Hz, open-field seeds 100-101, surge-cast flights).
 IMU_DECIMATION = 2
 
-FAILURE_CAUSES = ("declared-far", "timeout", "geofence", "crash", "takeoff")
+FAILURE_CAUSES = ("declared-far", "timeout", "geofence", "crash", "takeoff", "gave-up")
 
 
 @dataclass
 class TrialResult:
     """Outcome of one trial (SI units, NED, times from t = 0 on the ground).
 
-    success: declared within ``SUCCESS_RADIUS_M`` of the true source, horizontally.
+    success: declared within ``success_radius_m`` of the true source, horizontally.
     declared_ned: the declared source position, or None.
     error_m: horizontal distance declared - true source (nan without a declaration).
     time_s: simulation time of the declaration (nan without one).
     path_m: horizontal path flown from the end of the take-off to the declaration (or the end).
-    reach_path_m: horizontal path flown until the vehicle first came within ``SUCCESS_RADIUS_M``
-        of the source, horizontally (nan if it never did): the part of ``path_m`` spent finding
-        the source, the rest is spent deciding it is there.
+    reach_path_m: horizontal path flown until the vehicle first came within ``REACH_RADIUS_M``
+        of the source, horizontally (nan if it never did; counted on after a declaration, e.g.
+        over the descent): the part of the path spent finding the source.
+    success_radius_m: the success radius of this strategy (``SUCCESS_RADIUS_BY_STRATEGY``).
+    credible_radius_m: radius of the declared credible region (the strategy's, e.g. 90 %), nan
+        when the strategy states none; credible_contains: the true source lies inside it
+        (scoring only; None without a region).
     wind_rmse_ned: RMSE [m/s] of the wind the strategy was given (N, E, D) against the true wind at
         the vehicle (turbulence included), over the search ticks; nan without wind information.
     start_distance_m: horizontal distance from the start to the true source.
@@ -96,6 +106,9 @@ class TrialResult:
     reach_path_m: float = math.nan
     verifications: list[dict] = field(default_factory=list)
     wind_rmse_ned: list[float] = field(default_factory=lambda: [math.nan] * 3)
+    success_radius_m: float = SUCCESS_RADIUS_M
+    credible_radius_m: float = math.nan
+    credible_contains: bool | None = None
 
     @property
     def path_ratio(self) -> float:
@@ -168,14 +181,16 @@ def run_trial(
     start_dist = float(np.hypot(*(src[0:2] - home[0:2])))
     declared = None if res.declared_ned is None else np.asarray(res.declared_ned, dtype=float)
     cause = "" if res.cause == "declared" else _CAUSE.get(res.cause, "timeout")
+    radius = SUCCESS_RADIUS_BY_STRATEGY.get(strategy, SUCCESS_RADIUS_M)
+    cred = float(res.credible_radius_m)
     if declared is not None:
         err = float(np.hypot(*(declared[0:2] - src[0:2])))
-        success = err <= SUCCESS_RADIUS_M and cause != "crash"
+        success = err <= radius and cause != "crash"
         cause = "declared-far" if not success and not cause else ("" if success else cause)
         path = res.path_m
     else:
         err, success, path = math.nan, False, score.path
-        cause = cause or "timeout"
+        cause = "gave-up" if res.state == "give-up" and cause in ("", "timeout") else (cause or "timeout")
     t_declared = loop.t_declared
     result = TrialResult(
         scenario=sc.name, strategy=strategy, wind=wind, seed=seed, success=success,
@@ -186,6 +201,8 @@ def run_trial(
         reach_path_m=score.reach_path,
         verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
         wind_rmse_ned=score.wind_rmse(),
+        success_radius_m=radius, credible_radius_m=cred,
+        credible_contains=None if declared is None or math.isnan(cred) else bool(err <= cred),
     )
     if recorder is not None:
         recorder.finish(result)
@@ -194,7 +211,7 @@ def run_trial(
 
 class _Scorer:
     """Truth-based figures of a trial, taken at every search tick: the horizontal path flown, the
-    path until first within ``SUCCESS_RADIUS_M`` of the source, the wind error, the track once per second."""
+    path until first within ``REACH_RADIUS_M`` of the source, the wind error, the track once per second."""
 
     def __init__(self, sim: Simulation, src: np.ndarray, rate_hz: float, keep_track: bool,
                  vehicle: LockstepVehicle) -> None:  # fmt: skip
@@ -216,7 +233,7 @@ class _Scorer:
         self.prev = pos
         self.path_t.append(t)
         self.path_m.append(self.path)
-        if math.isnan(self.reach_path) and float(np.hypot(*(pos[0:2] - self.src[0:2]))) <= SUCCESS_RADIUS_M:
+        if math.isnan(self.reach_path) and float(np.hypot(*(pos[0:2] - self.src[0:2]))) <= REACH_RADIUS_M:
             self.reach_path = self.path
         info = self.vehicle.wind_info
         if info is not None:

@@ -96,6 +96,10 @@ class Setpoint:
     declared_source_ned: the declared source position (3,), m, NED (None if not declared).
     confidence: confidence in the declaration, 0..1.
     state: name of the strategy's state, for logs.
+    info: extra numbers for logs (strategy-specific).
+    credible_radius_m: radius of the declared credible region about ``declared_source_ned``
+        (horizontal, m; the probability is the strategy's, 90 % for infotaxis), NaN when the
+        strategy states none.
     """
 
     position_ned: np.ndarray | None = None
@@ -106,6 +110,7 @@ class Setpoint:
     confidence: float = 0.0
     state: str = ""
     info: dict[str, float] = field(default_factory=dict)
+    credible_radius_m: float = math.nan
 
 
 @runtime_checkable

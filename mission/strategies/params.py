@@ -33,6 +33,11 @@ def _p(default: float, lo: float, hi: float, doc: str) -> Any:
     return field(default=default, metadata={"range": (lo, hi), "doc": doc})
 
 
+def _c(default: str, choices: tuple[str, ...], doc: str) -> Any:
+    """A field whose value is one of ``choices`` (a string in the file)."""
+    return field(default=default, metadata={"choices": choices, "doc": doc})
+
+
 @dataclass(frozen=True)
 class CommonParams:
     """Parameters every strategy uses (SI units; angles in degrees)."""
@@ -86,10 +91,17 @@ class AnemotaxisParams(CommonParams):
     """Anemotaxis (paper Figs. 16-18): fly upwind on the filtered wind direction."""
 
     speed_m_s: float = _p(2.0, 0.2, 10.0, "ground speed upwind [m/s]")
-    declare_after_s: float = _p(8.0, 0.5, 300.0, "time without detection, upwind of the best point, before "
-                                "declaring [s] (no casting: a lost plume is not searched for)")
-    confirmations: int = _p(1, 1, 10, "verified ends at the same place needed to declare (anemotaxis has no "
-                            "lost search to re-acquire the plume between verifications)")
+    declare_after_s: float = _p(8.0, 0.5, 300.0, "time lost after a verified end at a supported candidate before "
+                                "declaring it anyway [s]")
+    confirmations: int = _p(1, 1, 10, "verified ends at the same place needed to declare")
+    recover_half_width_m: float = _p(4.0, 0.5, 100.0, "lost-plume recovery: first cast half-width, crosswind [m]")
+    recover_growth: float = _p(1.5, 1.0, 5.0, "lost-plume recovery: half-width factor after each full sweep")
+    recover_max_half_width_m: float = _p(25.0, 1.0, 500.0, "lost-plume recovery: largest half-width [m]")
+    recover_drift_m_s: float = _p(0.5, 0.0, 5.0, "lost-plume recovery: downwind drift of the cast [m/s]")
+    recover_back_m: float = _p(2.0, -20.0, 50.0, "lost-plume recovery: the cast starts this far downwind of the "
+                               "last hit [m]")
+    give_up_s: float = _p(60.0, 1.0, 3600.0, "give up (nothing declared) after this long without a detection [s]")
+    max_range_m: float = _p(200.0, 5.0, 5000.0, "give up when this far from home without any detection [m]")
 
 
 @dataclass(frozen=True)
@@ -136,6 +148,65 @@ class ZigzagParams(CommonParams):
                                  "turn about a world point, slow sweeps no longer cost zig-zag success)")
 
 
+@dataclass(frozen=True)
+class InfotaxisParams(CommonParams):
+    """Bayesian source-term estimation with information-driven moves (``mission.strategies.infotaxis``)."""
+
+    altitude_m: float = _p(2.0, 0.5, 100.0, "search altitude above the start point [m]: the middle of the "
+                           "source-height prior (at one altitude, a source below or above it looks the same as a "
+                           "stronger one further upwind; at the source's height the plume starts at the source)")
+    n_particles: int = _p(4000, 100, 200000, "particles of the source posterior")
+    rejuvenate: float = _p(0.02, 0.0, 0.5, "share of the particles redrawn from the prior about the posterior "
+                           "mean at every resampling (a lost region can come back)")
+    rejuvenate_along_m: float = _p(25.0, 0.0, 500.0, "rejuvenation corridor: this far up- and downwind [m]")
+    rejuvenate_across_m: float = _p(8.0, 0.0, 500.0, "rejuvenation corridor: this far either side [m]")
+    tempering: float = _p(1.0, 0.01, 1.0, "exponent on each bin's likelihood: consecutive bins of a first-order "
+                          "sensor in an intermittent plume are correlated, not independent")
+    stability: str = _c("D", ("A", "B", "C", "D", "E", "F"), "Pasquill-Gifford class of the plume model")
+    bin_s: float = _p(0.5, 0.05, 10.0, "readings are grouped into bins this long; a bin is a hit if any reading "
+                      "in it is one (hits come in bursts) [s]")
+    persistence_s: float = _p(0.7, 0.01, 60.0, "correlation time of being inside the intermittent plume (hits "
+                              "come in bursts, gaps last) [s]")
+    intermittency_length_m: float = _p(40.0, 1.0, 1000.0, "share of time a sensor in the plume detects: "
+                                       "1 / (1 + x / L) at x m downwind [m]")
+    meander_fraction: float = _p(0.5, 0.0, 0.99, "share of the class's crosswind variance that is meander")
+    meander_deg: float = _p(7.0, 0.0, 60.0, "plume direction meander, 1-sigma, on top of the class [deg]")
+    meander_window_s: float = _p(8.0, 0.1, 600.0, "readings within this time share one meander state [s]")
+    meander_nodes: int = _p(7, 1, 21, "quadrature nodes of the meander random effect")
+    detection_limit_mg_m3: float = _p(0.05, 1e-6, 1e6, "the sensor's detection limit [mg/m^3]")
+    false_alarm: float = _p(0.01, 1e-6, 0.2, "floor of P(hit) and P(miss) for any hypothesis (model error)")
+    source_radius_m: float = _p(0.3, 0.01, 10.0, "source size of the plume model [m]")
+    upwind_reach_m: float = _p(1.0, 0.05, 20.0, "hits can be placed this far (1-sigma) upwind of the source: the "
+                               "puffs' size, navigation noise, a bin's length [m]")
+    source_height_min_m: float = _p(1.0, 0.0, 50.0, "prior of the source height: lowest [m above ground]")
+    source_height_max_m: float = _p(3.0, 0.0, 50.0, "prior of the source height: highest [m above ground]")
+    release_min_g_s: float = _p(0.01, 1e-6, 1e6, "prior of the (effective) release rate, log-uniform: lowest [g/s]")
+    release_max_g_s: float = _p(100.0, 1e-6, 1e6, "prior of the (effective) release rate: highest [g/s]")
+    direction_sigma_deg: float = _p(5.0, 0.0, 90.0, "prior sigma of the plume direction about the filtered wind "
+                                    "direction [deg]")
+    assumed_wind_m_s: float = _p(3.0, 0.5, 30.0, "wind speed the model assumes without wind information [m/s]")
+    prior_range_m: float = _p(200.0, 5.0, 2000.0, "prior box: up to this far upwind of the first position [m]")
+    prior_back_m: float = _p(10.0, 0.0, 500.0, "prior box: from this far downwind of the first position [m]")
+    prior_half_width_m: float = _p(80.0, 1.0, 2000.0, "prior box: this far either side crosswind [m]")
+    near_m: float = _p(10.0, 0.0, 1000.0, "fly at near_speed_m_s once the posterior mean is this close and the "
+                       "credible radius this small [m]")
+    near_speed_m_s: float = _p(1.0, 0.2, 10.0, "ground speed near the source [m/s]")
+    max_range_m: float = _p(200.0, 5.0, 5000.0, "moves stay within this horizontal distance of home [m]")
+    plan_particles: int = _p(300, 10, 100000, "particles (resampled) the move choice evaluates")
+    plan_directions: int = _p(16, 4, 64, "candidate headings of a move")
+    plan_horizon_m: float = _p(20.0, 1.0, 200.0, "longest candidate move [m]")
+    plan_min_m: float = _p(3.0, 0.5, 200.0, "shortest candidate move [m] (moves reach the posterior: distance "
+                           "to its mean plus its credible radius, within these bounds)")
+    plan_points: int = _p(6, 1, 20, "readings predicted along a candidate move")
+    jitter: float = _p(0.1, 0.0, 1.0, "kernel width after resampling, times the posterior spread per dimension")
+    credible_level: float = _p(0.9, 0.5, 0.999, "probability of the declared credible region")
+    declare_confidence: float = _p(0.9, 0.5, 0.9999, "declare when the posterior probability that the source "
+                                   "lies within success_radius_m of the credible disc's centre reaches this")
+    declare_radius_m: float = _p(3.0, 0.1, 100.0, "... and the credible region's radius is at most this [m]")
+    success_radius_m: float = _p(3.0, 0.1, 100.0, "confidence = posterior probability that the source lies "
+                                 "within this distance of the declared point [m]")
+
+
 #: Fields where NaN means "not set" (documented per field).
 NAN_ALLOWED = frozenset({"initial_heading_deg"})
 
@@ -143,6 +214,7 @@ PARAM_CLASSES: dict[str, type[CommonParams]] = {
     "anemotaxis": AnemotaxisParams,
     "surge-cast": SurgeCastParams,
     "zigzag": ZigzagParams,
+    "infotaxis": InfotaxisParams,
 }
 
 
@@ -159,9 +231,23 @@ def _check(cls_name: str, name: str, value: Any, lo: float, hi: float, integer: 
     return int(value) if integer else float(value)
 
 
+def _check_field(where: str, f: Any, value: Any) -> float | int | str:
+    """``value`` checked against the field's range or choices (``where``: the sub-table name or "")."""
+    if "choices" in f.metadata:
+        if value not in f.metadata["choices"]:
+            name = f"strategy.{where}.{f.name}" if where else f"strategy.{f.name}"
+            raise ParamError(f"{name} = {value!r}: allowed values are {', '.join(f.metadata['choices'])}")
+        return str(value)
+    lo, hi = f.metadata["range"]
+    return _check(where, f.name, value, lo, hi, isinstance(f.default, int) and not isinstance(f.default, bool))
+
+
 def validate(params: CommonParams, strategy: str = "") -> CommonParams:
     """Check every field of ``params`` against its range (ParamError naming the field)."""
     for f in fields(params):
+        if "choices" in f.metadata:
+            _check_field(strategy, f, getattr(params, f.name))
+            continue
         lo, hi = f.metadata["range"]
         v = getattr(params, f.name)
         _check(strategy, f.name, v, lo, hi, isinstance(f.default, int) and not isinstance(f.default, bool))
@@ -170,6 +256,11 @@ def validate(params: CommonParams, strategy: str = "") -> CommonParams:
             f"strategy.descend_altitude_m = {params.descend_altitude_m}: must not exceed "
             f"strategy.altitude_m = {params.altitude_m}"
         )
+    lo_hi = (("source_height_min_m", "source_height_max_m"), ("release_min_g_s", "release_max_g_s"))
+    for lo_name, hi_name in lo_hi:
+        if hasattr(params, lo_name) and getattr(params, lo_name) > getattr(params, hi_name):
+            raise ParamError(f"strategy.{lo_name} = {getattr(params, lo_name)}: must not exceed "
+                             f"strategy.{hi_name} = {getattr(params, hi_name)}")
     if params.wind_filter_cutoff_hz >= params.rate_hz / 2.0:
         raise ParamError(
             f"strategy.wind_filter_cutoff_hz = {params.wind_filter_cutoff_hz}: must be below "
@@ -206,9 +297,7 @@ def params_from_table(strategy: str, table: dict[str, Any] | None) -> CommonPara
     p = cls()
     for key, v in values.items():
         f = next(f for f in fields(cls) if f.name == key)
-        lo, hi = f.metadata["range"]
-        where = strategy if key in sub else ""
-        values[key] = _check(where, key, v, lo, hi, isinstance(f.default, int) and not isinstance(f.default, bool))
+        values[key] = _check_field(strategy if key in sub else "", f, v)
     return validate(replace(p, **values), strategy)
 
 

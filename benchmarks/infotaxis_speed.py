@@ -1,0 +1,102 @@
+"""Infotaxis speed: one posterior update and one move choice, per particle count.
+
+The strategy runs at 10 Hz; it updates the posterior once per reading bin (``bin_s`` = 0.5 s,
+every 5th tick) and chooses its move on the next tick, so the worst tick costs either one update
+(with a resampling at worst) or one move choice, plus the credible-disc summary after an update.
+"Mean tick": the update, the move choice and the summary spread over the 5 ticks of a bin
+(resampling excluded: it happens every few seconds). Goal (issue 19): the worst tick within 5 ms
+on one core. Times are CPU time of the thread (the machine is shared; what counts is one core).
+
+The state is a realistic mid-search posterior: the strategy is driven for 30 s of a kinematic
+approach (open-field geometry, readings drawn from the model itself), then each operation is
+timed on that state (median of repeats, numba kernels compiled first). Scaling: the update and
+the resampling are linear in ``n_particles`` (times ``meander_nodes`` for the update), the move
+choice in ``plan_particles`` x ``plan_directions`` x ``plan_points``, the credible disc
+O(n log n).
+
+    python benchmarks/infotaxis_speed.py [--particles 1000,2000,4000,8000] [--plan-particles 150,300,600]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from mission.strategies import params_from_table
+from mission.strategies.base import Observation, WindInfo
+from mission.strategies.infotaxis import Infotaxis
+from mission.strategies.params import InfotaxisParams
+from mission.strategies.ste_model import detection_prob
+
+
+def _drive(n: int, plan_particles: int, seconds: float = 30.0) -> Infotaxis:
+    """An Infotaxis strategy after ``seconds`` of a kinematic approach up a model plume."""
+    p = params_from_table("infotaxis", {"infotaxis": {"n_particles": n, "plan_particles": plan_particles}})
+    assert isinstance(p, InfotaxisParams)
+    s = Infotaxis()
+    s.reset(np.zeros(3), p, seed=1)
+    rng = np.random.default_rng(1)
+    wind = WindInfo(wind_ned=np.array([-5.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)
+    pos = np.array([0.0, 1.0, -p.altitude_m])
+    for k in range(int(seconds * 10)):
+        x = 60.0 - pos[0]
+        pd = detection_prob(x, pos[1], p.altitude_m, 2.0, 4.5, 5.0, s.post.mc) if s.post.ready else 0.3
+        hit = bool(rng.random() < pd)
+        obs = Observation(t=k * 0.1, position_ned=pos.copy(), velocity_ned=np.zeros(3), chem_mg_m3=1.0 if hit else 0.0,
+                          detected=hit, chem_new=True, wind=wind)
+        sp = s.update(obs)
+        if sp.velocity_ned is not None:
+            pos[0:2] += sp.velocity_ned[0:2] * 0.1
+    return s
+
+
+def _median_ms(fn, repeats: int) -> float:
+    """Median CPU time [ms] of this thread per call (CPU, not wall time: the benchmark machine is
+    shared, and what counts is the cost on one core)."""
+    out = []
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        fn()
+        out.append(time.thread_time() - t0)
+    return 1e3 * float(np.median(out))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--particles", default="1000,2000,4000,8000")
+    ap.add_argument("--plan-particles", default="150,300,600")
+    ap.add_argument("--repeats", type=int, default=30)
+    args = ap.parse_args()
+    _drive(200, 50, 2.0)  # compile the kernels
+    print("| particles | plan particles | update ms | resample ms | move choice ms | credible disc ms "
+          "| worst tick ms | mean tick ms |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for n in (int(v) for v in args.particles.split(",")):
+        for m in (int(v) for v in args.plan_particles.split(",")):
+            print(_row(n, m, args.repeats), flush=True)
+
+
+def _row(n: int, m: int, repeats: int) -> str:
+    """One table row: the costs [ms] for ``n`` particles and ``m`` plan particles."""
+    s = _drive(n, m)
+    post = s.post
+    downwind, u = math.pi, 5.0
+    obs = Observation(t=30.0, position_ned=np.array([40.0, 0.5, -s.p.altitude_m]), velocity_ned=np.zeros(3),
+                      chem_mg_m3=0.0, detected=False,
+                      wind=WindInfo(wind_ned=np.array([-5.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0))
+    center = post.mean_ne()
+    t_plan = _median_ms(lambda: s._plan(obs, center, downwind, u), repeats)
+    t_cr = _median_ms(lambda: post.credible_disc(0.9), repeats)
+    t_res = _median_ms(post._resample, repeats)
+    t_up = _median_ms(lambda: post.update(30.0, 40.0, 0.5, 2.0, False, downwind, u), repeats)
+    # The update (with a resampling at worst) and the move choice fall on different ticks.
+    worst = max(t_up + t_res + t_cr, t_plan)
+    mean = (t_up + t_plan + t_cr) / 5.0
+    return f"| {n} | {m} | {t_up:.2f} | {t_res:.2f} | {t_plan:.2f} | {t_cr:.2f} | {worst:.2f} | {mean:.2f} |"
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,272 @@
+"""Infotaxis: Bayesian source-term estimation with information-driven moves.
+
+The strategy keeps a posterior over the source (``mission.strategies.ste_filter``: particles
+over horizontal position, height, effective release rate and plume direction offset), updates it
+with every chemical reading -- hits *and* non-detections -- through the detection model of
+``mission.strategies.ste_model`` (the mean Gaussian plume of the assumed stability class in the
+filtered wind, with an intermittency model fitted to the plume's statistics), and flies where a
+reading is expected to tell the most about the source:
+
+- **Readings.** A hit is a reading above the detection limit that is not just the first-order
+  sensor's decay (``PlumeMemory.add``); a miss is a reading below the limit; a decaying reading
+  above the limit says nothing new and is skipped. Each is attributed to where the vehicle was
+  ``sensor_lag_s`` earlier, at its height above home.
+- **Moves** (infotaxis, Vergassola, Villermaux & Shraiman, Nature 445, 2007, with a short
+  receding horizon): every tick, ``plan_directions`` straight moves of ``plan_horizon_m`` from
+  the current position (the first along the current heading) are scored by the sum of the
+  expected information of ``plan_points`` readings along them -- the mutual information between
+  a binary reading and the source, over ``plan_particles`` particles drawn from the posterior --
+  and the vehicle flies the best at ``speed_m_s``. Far from the source the most informative
+  readings lie where the posterior is split between "the source is upwind of here" and "it is
+  behind": the vehicle goes upwind along the plume; near it, around the source.
+- **Declaration.** The ``credible_level`` (90 %) credible region is a disc whose centre is moved
+  from the posterior mean toward the mode (``SourcePosterior.credible_disc``). When the
+  posterior probability that the source lies within ``success_radius_m`` (3 m) of that centre --
+  the confidence -- reaches ``declare_confidence`` (0.9), and the disc's radius is at most
+  ``declare_radius_m``, the centre is declared with that radius and that confidence. The vehicle
+  flies over the point, descends and stops, as the other strategies do.
+
+Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any
+direction), the speed ``assumed_wind_m_s``; the hits themselves must then tell the direction.
+
+Frames and units: NED, SI; headings in rad (0 = north, clockwise); heights above home.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mission.strategies.base import Observation, Setpoint, heading_of, heading_vec
+from mission.strategies.common import BaseStrategy
+from mission.strategies.params import InfotaxisParams
+from mission.strategies.ste_filter import PriorBox, SourcePosterior
+from mission.strategies.ste_model import model_constants
+
+#: Time constant of the wind-speed average the plume model uses [s].
+SPEED_TAU_S = 10.0
+#: Time constant of the altitude average the readings are placed at [s].
+ALTITUDE_TAU_S = 2.0
+#: Score bonus of continuing the current heading (fraction): keeps the vehicle from dithering
+#: between moves of nearly equal value.
+KEEP_HEADING_BONUS = 0.1
+
+
+class Infotaxis(BaseStrategy):
+    """Source-term estimation (particle posterior) + infotaxis moves + credible-region declaration."""
+
+    name = "infotaxis"
+    p: InfotaxisParams
+
+    def reset(self, start_ned: np.ndarray, params: InfotaxisParams, seed: int = 0) -> None:  # type: ignore[override]
+        super().reset(start_ned, params, seed)
+        p = params
+        mc = model_constants(p.stability, p.source_radius_m, p.intermittency_length_m, p.detection_limit_mg_m3,
+                             p.false_alarm, p.upwind_reach_m, p.meander_fraction,
+                             math.radians(p.meander_deg))
+        self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x1F07A5]))
+        self.post = SourcePosterior(p.n_particles, mc, p.tempering, p.jitter, self.rng, int(p.meander_nodes),
+                                    p.meander_window_s, math.exp(-p.bin_s / p.persistence_s), p.rejuvenate,
+                                    (p.rejuvenate_along_m, p.rejuvenate_across_m))
+        self.speed = math.nan
+        self.heading: float | None = None
+        self.credible_radius = math.nan
+        self.n_hits = 0
+        self.n_misses = 0
+        self.last_info = 0.0
+        self.diag: dict[str, float] = {}
+        self._bin: list[float] = []  # t0, sums of north, east, readings; of north, east, readings of hits
+        self.alt = math.nan
+        self._plan_due = False
+        self._disc_at = -1
+        self._center = np.zeros(2)
+
+    # ------------------------------------------------------------------ wind
+    def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
+        """(downwind heading [rad], speed [m/s]) of the mean plume, or None while the wind source
+        has no usable direction yet; without wind information (``none``) north at the assumed
+        speed (the posterior's direction offsets are then uniform)."""
+        p = self.p
+        w = obs.wind
+        if w is None:
+            return 0.0, p.assumed_wind_m_s
+        if not math.isfinite(w.upwind_rad) or w.speed_m_s < p.min_wind_m_s:
+            return None
+        a = 1.0 if math.isnan(self.speed) else -math.expm1(-dt / SPEED_TAU_S)
+        self.speed = w.speed_m_s if math.isnan(self.speed) else self.speed + a * (w.speed_m_s - self.speed)
+        return w.upwind_rad + math.pi, max(self.speed, p.min_wind_m_s)
+
+    def _init_prior(self, obs: Observation) -> None:
+        p = self.p
+        w = obs.wind
+        sigma = None
+        upwind = 0.0
+        if w is not None:
+            upwind = w.upwind_rad
+            sigma = math.hypot(math.radians(p.direction_sigma_deg), min(w.upwind_sigma_rad, math.radians(30.0)))
+        pos = obs.position_ned[0:2]
+        self.post.init_prior(PriorBox(
+            origin_ne=(float(pos[0]), float(pos[1])), upwind_rad=upwind, ahead=p.prior_range_m, back=p.prior_back_m,
+            half_width=p.prior_half_width_m, h_range=(p.source_height_min_m, p.source_height_max_m),
+            q_range=(p.release_min_g_s, p.release_max_g_s), delta_sigma=sigma))
+
+    # ------------------------------------------------------------------ tick
+    def update(self, obs: Observation) -> Setpoint:
+        if self.p is None:
+            raise RuntimeError(f"{self.name}: reset() must be called before update()")
+        p = self.p
+        dt = 1.0 / p.rate_hz if self.t_prev is None else max(obs.t - self.t_prev, 0.0)
+        self.t_prev = obs.t
+        hit = self.memory.add(obs)
+        wind = self._plume_wind(obs, dt)
+        u_vec = heading_vec(obs.wind.upwind_rad) if wind is not None and obs.wind is not None else heading_vec(0.0)
+        if self.declared is not None:
+            return self._descend(obs, u_vec)
+        if wind is None:  # no usable wind direction yet: hold here
+            return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, p.altitude_m), velocity_ned=np.zeros(3),
+                            state="wait-wind")
+        if not self.post.ready:
+            self._init_prior(obs)
+        downwind, speed = wind
+        # The move is chosen on the tick after a bin updated the posterior: the two costs fall on
+        # different ticks (benchmarks/infotaxis_speed.py), the move 0.1 s later.
+        replan = self.heading is None or self._plan_due
+        self._plan_due = False
+        if obs.chem_new and self._add_reading(obs, hit, downwind, speed):
+            self._plan_due = True
+        if self.post.n_updates != self._disc_at:  # the posterior only changes with a bin
+            self._disc_at = self.post.n_updates
+            self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
+            self.confidence = self.post.mass_within(self._center, p.success_radius_m)
+        center = self._center
+        if self.confidence >= p.declare_confidence and self.credible_radius <= p.declare_radius_m:
+            self._declare_posterior(obs.t, center)
+            return self._descend(obs, u_vec)
+        if replan:
+            self._plan(obs, center, downwind, speed)
+        heading = 0.0 if self.heading is None else self.heading  # _plan() has set it
+        v_ne = self._speed(obs, center) * heading_vec(heading)
+        pos_sp = self._carrot(obs, v_ne, dt, p.altitude_m)
+        return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
+                        yaw_rad=heading_of(u_vec), state="search",
+                        info={"credible_radius_m": self.credible_radius, "info_bits": self.last_info,
+                              "ess": self.post.ess()})
+
+    def _add_reading(self, obs: Observation, hit: bool, downwind: float, speed: float) -> bool:
+        """Put a new reading into the current bin; a full bin updates the posterior: a hit if any
+        reading in it was a hit, placed at the mean position of its hit readings; else a miss
+        (a reading that only decays is no hit: what arrives at the sensor then is below what a
+        hit needs), placed at the mean position of the bin. Positions: where the vehicle was
+        ``sensor_lag_s`` before each reading; height: the vehicle's, averaged over
+        ``ALTITUDE_TAU_S`` (the navigation altitude is noisier than the flown one)."""
+        p = self.p
+        lag = obs.position_ned[0:2] - p.sensor_lag_s * obs.velocity_ned[0:2]
+        alt = float(self.start[2] - obs.position_ned[2])
+        a = 1.0 if math.isnan(self.alt) else -math.expm1(-1.0 / (p.rate_hz * ALTITUDE_TAU_S))
+        self.alt = alt if math.isnan(self.alt) else self.alt + a * (alt - self.alt)
+        b = self._bin
+        if not b:
+            b.extend([obs.t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        b[1] += float(lag[0])
+        b[2] += float(lag[1])
+        b[3] += 1.0
+        if hit:
+            b[4] += float(lag[0])
+            b[5] += float(lag[1])
+            b[6] += 1.0
+        if obs.t - b[0] < p.bin_s - 1e-6:
+            return False
+        if b[6] > 0.0:
+            self.post.update(obs.t, b[4] / b[6], b[5] / b[6], self.alt, True, downwind, speed)
+            self.n_hits += 1
+        else:
+            self.post.update(obs.t, b[1] / b[3], b[2] / b[3], self.alt, False, downwind, speed)
+            self.n_misses += 1
+        b.clear()
+        return True
+
+    def _speed(self, obs: Observation, center: np.ndarray) -> float:
+        """Ground speed [m/s]: ``speed_m_s`` while the source is far or unknown, ``near_speed_m_s``
+        once the posterior is within ``near_m`` of the vehicle and no wider than that: what the
+        path costs is metres, and near a source a slower vehicle takes more readings per metre."""
+        p = self.p
+        d = float(np.hypot(*(center - obs.position_ned[0:2])))
+        near = d <= p.near_m and self.credible_radius <= p.near_m
+        return p.near_speed_m_s if near else p.speed_m_s
+
+    def _plan(self, obs: Observation, center: np.ndarray, downwind: float, speed: float) -> None:
+        """Choose the most informative move (module docstring): sets ``heading`` [rad].
+
+        Each candidate heading is scored by the most informative single reading along it
+        (Hutchinson, Liu & Chen, AutoSTE, score the end points of their moves the same way): a
+        sum over the points would favour long runs through mildly informative far field over a
+        short approach to where the posterior is. The horizon shrinks with the posterior: the
+        distance to its mean plus its credible radius, between ``plan_min_m`` and
+        ``plan_horizon_m``."""
+        p = self.p
+        pos = obs.position_ned[0:2]
+        k_dirs, n_pts = int(p.plan_directions), int(p.plan_points)
+        h0 = heading_of(pos - self.start[0:2]) if self.heading is None else self.heading
+        headings = h0 + 2.0 * math.pi * np.arange(k_dirs) / k_dirs
+        horizon = float(np.hypot(*(center - pos))) + self.credible_radius
+        horizon = min(max(horizon, p.plan_min_m), p.plan_horizon_m)
+        dist = horizon * np.arange(1, n_pts + 1) / n_pts
+        cx = (pos[0] + np.outer(np.cos(headings), dist)).ravel()
+        cy = (pos[1] + np.outer(np.sin(headings), dist)).ravel()
+        plan = self.post.planning_set(int(p.plan_particles))
+        info, _ = self.post.information(cx, cy, p.altitude_m, downwind, speed, plan)
+        score = info.reshape(k_dirs, n_pts).max(axis=1)
+        # Moves that would leave the allowed range are not candidates.
+        far = np.hypot(cx - self.start[0], cy - self.start[1]).reshape(k_dirs, n_pts)[:, -1] > p.max_range_m
+        score[far] = -np.inf
+        if self.heading is not None:
+            score[0] *= 1.0 + KEEP_HEADING_BONUS
+        k = int(np.argmax(score))
+        self.last_scores = (headings, score)
+        if not math.isfinite(score[k]):  # every move leaves the range: go home-ward
+            self.heading = heading_of(self.start[0:2] - pos)
+        else:
+            self.heading = float((headings[k] + math.pi) % (2.0 * math.pi) - math.pi)
+        self.last_info = float(score[k]) if math.isfinite(score[k]) else 0.0
+
+    # ------------------------------------------------------------------ declaration
+    def _declare_posterior(self, t: float, center: np.ndarray) -> None:
+        self.declared = np.array([center[0], center[1], self.start[2] - self.post.mean_height()])
+        self.t_declared = t
+        self.diag = {"credible_radius_m": self.credible_radius, "n_hits": float(self.n_hits),
+                     "n_misses": float(self.n_misses), "n_resamples": float(self.post.n_resamples),
+                     "source_height_m": self.post.mean_height(),
+                     "release_g_s": float(10.0 ** (self.post.w @ self.post.lq))}
+
+    def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
+        sp = super()._descend(obs, u)
+        sp.credible_radius_m = self.credible_radius
+        return sp
+
+    # ------------------------------------------------------------------ display
+    def posterior_map(self, cell_m: float = 1.0, extent: tuple[float, float, float, float] | None = None
+                      ) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
+        """The source posterior at flight altitude for display: (P, extent) with ``P[i, j]`` the
+        probability of cell i (north) x j (east), ``cell_m`` m square, ``extent`` = (north_min,
+        north_max, east_min, east_max) [m NED, relative to home]; default extent: the prior box's
+        bounding box. None before the first usable wind (no posterior yet)."""
+        if not self.post.ready:
+            return None
+        if extent is None:
+            extent = self._prior_extent()
+        return self.post.posterior_map(cell_m, extent)
+
+    def credible_region(self) -> tuple[np.ndarray, float] | None:
+        """(centre (north, east) [m NED], radius [m]) of the current ``credible_level`` disc (the
+        declared one after the declaration); None before the posterior exists."""
+        if not self.post.ready:
+            return None
+        c = self.declared[0:2].copy() if self.declared is not None else self.post.mean_ne()
+        return c, float(self.credible_radius)
+
+    def _prior_extent(self) -> tuple[float, float, float, float]:
+        box = self.post.prior
+        r = math.hypot(max(box.ahead, box.back), box.half_width if box.delta_sigma is not None else box.ahead)
+        o = box.origin_ne
+        return (math.floor(o[0] - r), math.ceil(o[0] + r), math.floor(o[1] - r), math.ceil(o[1] + r))
