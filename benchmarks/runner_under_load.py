@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -86,6 +87,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--wall-limit", type=float, default=600.0, help="wall seconds before a run counts as hung")
     args = ap.parse_args()
+    # A SIGTERM (a timeout around the script) still runs one_run's cleanup: no busy process outlives it.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     print(f"# runner under load: open-field, surge-cast, estimated wind, SITL speed {args.speed:g}, "
           f"{os.cpu_count()} cores")  # fmt: skip
     cols = ("burners", "load", "cause", "wall_s", "mission_s", "setpoint_hz", "tick_hz", "ticks_skipped",
