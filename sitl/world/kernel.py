@@ -52,7 +52,7 @@ class Obstacles(NamedTuple):
 NO_OBSTACLES = Obstacles(np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0), np.zeros((0, 4)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # into the fused loops: no per-tick call with the Obstacles tuple
 def physics_tick(
     tick: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, wind: np.ndarray, flags: np.ndarray,
     p: np.ndarray, crash_speed: float, imu_div: int, rows: np.ndarray, nrow: int, fb: np.ndarray,

@@ -74,7 +74,9 @@ def _schedule_index(t: float, sched_t: np.ndarray) -> int:
     return lo
 
 
-@njit(cache=True)
+# inline="always" on the per-tick helpers: a call passes the WindKernel tuple (about twenty arrays)
+# by value; inlined into the fused loop the simulator runs 12-15 % faster (benchmarks/README.md).
+@njit(cache=True, inline="always")
 def _mean_components(t: float, z: float, w: WindKernel) -> tuple[float, float, float, float, float]:
     """(mean n, e, d at height -z; reference-height n, e) in m/s NED at time t."""
     i = _schedule_index(t, w.sched_t)
@@ -89,14 +91,14 @@ def _mean_components(t: float, z: float, w: WindKernel) -> tuple[float, float, f
     return vn * scale, ve * scale, vd, vn, ve
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _urban_mean(x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float, float, float]:
     """Like :func:`_mean_components` for the urban field: (mean n, e, d; reference-height n, e)."""
     mn, me, md = urban_wind_at(x, y, z, w.ugp, w.u_n, w.v_e, w.w_d, w.uwp, w.verts, w.offsets, w.heights, w.bbox)
     return mn, me, md, w.uwp[0] * w.uwp[4], w.uwp[0] * w.uwp[5]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float]:
     """Air-mass velocity (m/s, NED) at NED point (x, y, z) and time t, as three floats."""
     if w.urban_on:
@@ -153,7 +155,7 @@ def wind_mean(t: float, pos: np.ndarray, w: WindKernel) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def wind_velocity(t: float, pos: np.ndarray, w: WindKernel) -> np.ndarray:
     """Air-mass velocity (3,) m/s NED (mean + turbulence) at NED ``pos`` (3,) m, time ``t`` s."""
     vn, ve, vd = _wind_components(t, pos[0], pos[1], pos[2], w)
