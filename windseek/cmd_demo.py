@@ -181,6 +181,12 @@ class _Demo:
             if line.startswith("mission: "):  # not MAVSDK's debug lines, nor the autopilot's echoed STATUSTEXT
                 self.note(f"  {line}")
 
+        if pl.speed > 1.0:
+            # PX4's offboard-loss timeout (COM_OF_LOSS_T, 1 s) counts vehicle time: at speed 5 it is 0.2 s of
+            # wall clock, less than a scheduling hiccup of a loaded machine. 1 s of wall clock, as in real time.
+            loss_t = 1.0 * pl.speed
+            if obs.set_param("COM_OF_LOSS_T", loss_t):
+                self.note(f"  offboard-loss timeout COM_OF_LOSS_T = {loss_t:g} s of vehicle time (1 s of wall clock)")
         mis = self._start("mission", ["mission", "--connect", f"udpin://127.0.0.1:{self.p_mis}", "--strategy",
                                       pl.strategy, "--wind", "mavlink", "--speed-hint", f"{pl.speed:g}", "--seed",
                                       str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json"],

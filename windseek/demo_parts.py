@@ -96,7 +96,8 @@ class Proc:
 
 
 class Observer(threading.Thread):
-    """A passive UDP peer of the SITL (it never sends): follows the vehicle for the progress display."""
+    """A UDP peer of the SITL that follows the vehicle for the progress display. It sends no HEARTBEAT
+    (it must not count as a data link), only the PARAM_SETs of :meth:`set_param`."""
 
     def __init__(self) -> None:
         super().__init__(name="demo-observer", daemon=True)
@@ -118,6 +119,7 @@ class Observer(threading.Thread):
         self.wind: list[float] | None = None
         self.wind_covs = 0
         self.t_arm: float | None = None
+        self.params: dict[str, float] = {}
         self._halt = threading.Event()
 
     def run(self) -> None:
@@ -153,6 +155,23 @@ class Observer(threading.Thread):
         elif mtype == "WIND_COV":
             self.wind = [m.wind_x, m.wind_y, m.wind_z]
             self.wind_covs += 1
+        elif mtype == "PARAM_VALUE":
+            self.params[str(m.param_id).rstrip("\x00")] = float(m.param_value)
+
+    def set_param(self, name: str, value: float, timeout_s: float = 10.0) -> bool:
+        """PARAM_SET (REAL32) to the SITL until its PARAM_VALUE echoes ``value``; False after
+        ``timeout_s`` wall seconds (or before the SITL was heard from)."""
+        end = time.monotonic() + timeout_s
+        enc = self.mav.MAVLink(None, 250, 1)
+        frame = enc.param_set_encode(1, 1, name.encode(), value, self.mav.MAV_PARAM_TYPE_REAL32).pack(enc)
+        while time.monotonic() < end:
+            got = self.params.get(name)
+            if got is not None and abs(got - value) <= 1e-6 * max(1.0, abs(value)):
+                return True
+            if self.sitl_addr is not None:
+                self.sock.sendto(frame, self.sitl_addr)
+            time.sleep(0.2)
+        return False
 
     def status(self) -> str:
         from recording.sim_hook import wind_speed_from_deg
