@@ -95,6 +95,10 @@ class Proc:
         return f"{self.name} exited with status {self.popen.returncode}; its last lines ({self.log_path}):\n{lines}"
 
 
+#: The observer's MAVLink system id for its PARAM_SETs (not 250, pymavlink's default, nor MAVSDK's 245).
+OBSERVER_SYSTEM = 251
+
+
 class Observer(threading.Thread):
     """A UDP peer of the SITL that follows the vehicle for the progress display. It sends no HEARTBEAT
     (it must not count as a data link), only the PARAM_SETs of :meth:`set_param`."""
@@ -162,7 +166,7 @@ class Observer(threading.Thread):
         """PARAM_SET (REAL32) to the SITL until its PARAM_VALUE echoes ``value``; False after
         ``timeout_s`` wall seconds (or before the SITL was heard from)."""
         end = time.monotonic() + timeout_s
-        enc = self.mav.MAVLink(None, 250, 1)
+        enc = self.mav.MAVLink(None, OBSERVER_SYSTEM, 1)
         frame = enc.param_set_encode(1, 1, name.encode(), value, self.mav.MAV_PARAM_TYPE_REAL32).pack(enc)
         while time.monotonic() < end:
             got = self.params.get(name)
