@@ -91,7 +91,7 @@ class MavProxy:
         if self.proc.poll() is None:
             self.proc.terminate()
             try:
-                self.proc.wait(10)
+                self.proc.wait(2)  # MAVProxy's threads often outlive a SIGTERM by 10 s: not what is tested
             except subprocess.TimeoutExpired:
                 self.proc.kill()
 
