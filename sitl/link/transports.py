@@ -236,6 +236,8 @@ class TcpServerTransport(Transport):
             n = conn.send(data)
             self.stats.tx_bytes += n
             if n < len(data):
+                # A partial frame would desynchronise the peer's parser for one frame only;
+                # MAVLink resynchronises on the next start byte, so count it and move on.
                 self.stats.tx_errors += 1
         except (BlockingIOError, InterruptedError):
             self.stats.tx_errors += 1
@@ -248,18 +250,8 @@ class TcpServerTransport(Transport):
             conn.close()
 
     def write(self, data: bytes) -> None:
-        for fd, conn in list(self.clients.items()):
-            try:
-                n = conn.send(data)
-                self.stats.tx_bytes += n
-                if n < len(data):
-                    # A partial frame would desynchronise the peer's parser for one frame only;
-                    # MAVLink resynchronises on the next start byte, so count it and move on.
-                    self.stats.tx_errors += 1
-            except (BlockingIOError, InterruptedError):
-                self.stats.tx_errors += 1
-            except OSError:
-                self._drop(fd)
+        for fd in list(self.clients):
+            self.send_to(data, fd)
 
     def close(self) -> None:
         for fd in list(self.clients):
