@@ -29,16 +29,19 @@ from sitl.simulation import Simulation  # noqa: E402
 def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", repeats: int = 3) -> dict:
     sc = load_scenario(scenario).with_duration(sim_seconds + 1.0)
     Simulation(sc, seed=0).run(1.0)  # warm-up: JIT compile / load the numba cache
-    best = 0.0
+    best = best_cpu = 0.0
     for r in range(repeats):
         sim = Simulation(sc, seed=r)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         sim.run(sim_seconds)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         best = max(best, sim_seconds / wall)
+        best_cpu = max(best_cpu, sim_seconds / cpu)
         assert not sim.crashed
+    # The CPU-time figure is the one to compare between runs on a shared machine: other processes
+    # lengthen the wall clock, not the process's own CPU time.
     return {"scenario": scenario, "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
-            "realtime_factor": best}
+            "realtime_factor": best, "realtime_factor_cpu": best_cpu}
 
 
 def main() -> None:
@@ -51,7 +54,7 @@ def main() -> None:
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
     ws = windseek_realtime_factor(args.seconds)
     print(f"windseek  500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
-          f"(goal >= 100)")
+          f"(goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
     if args.no_peer:
         return
     from rotorpy_peer import rotorpy_realtime_factor

@@ -35,7 +35,7 @@ from sitl.autopilot.controller import (
 )
 from sitl.autopilot.mission_exec import MissionExecution
 from sitl.autopilot.modes import FlightConfig, ItemKind, LandedState, MissionItem, Mode, StatusEvent
-from sitl.autopilot.trajectory import Trajectory
+from sitl.autopilot.trajectory import Trajectory, vec_norm
 
 __all__ = ["F_IDLE", "FlightConfig", "FlightController", "ItemKind", "LandedState", "MissionItem", "Mode",
            "StatusEvent", "Trajectory"]
@@ -391,11 +391,11 @@ class FlightController(MissionExecution):
             self._land_touch = math.nan
 
     def _rtl_step(self, t: float) -> None:
-        if self._phase == "climb" and np.linalg.norm(self._traj.pos - self._traj.target) < 0.05:
+        if self._phase == "climb" and vec_norm(self._traj.pos - self._traj.target) < 0.05:
             self._phase = "return"
             self._traj.retarget(np.array([self.home[0], self.home[1], self._traj.target[2]]))
             self.say("RTL: return at altitude")
-        elif self._phase == "return" and np.linalg.norm(self._pos[:2] - self.home[:2]) < 1.0:
+        elif self._phase == "return" and vec_norm(self._pos[:2] - self.home[:2]) < 1.0:
             self.say("RTL: land at home")
             self._begin_land()
             self.mode = Mode.RTL

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sitl.autopilot.modes import FlightConfig, ItemKind, MissionItem, Mode
+from sitl.autopilot.trajectory import vec_norm
 
 if TYPE_CHECKING:
     from sitl.autopilot.trajectory import Trajectory
@@ -114,14 +115,14 @@ class MissionExecution:
         item = self.mission[self.mission_index]
         speed = self.config.takeoff_speed_m_s if item.kind == ItemKind.TAKEOFF else self._speed
         if item.kind == ItemKind.LAND:
-            near = np.linalg.norm(self._pos[:2] - self._traj.target[:2])
+            near = vec_norm(self._pos[:2] - self._traj.target[:2])
             if near < max(item.acceptance_radius_m, 0.5):
                 self.mission_reached.append(self.mission_index)
                 self.mission_index += 1
                 self._begin_land()
             return speed
-        reached = bool(np.linalg.norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3))
-        reached = reached and bool(np.linalg.norm(self._traj.pos - self._traj.target) < 1e-3)
+        reached = bool(vec_norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3))
+        reached = reached and bool(vec_norm(self._traj.pos - self._traj.target) < 1e-3)
         if item.kind == ItemKind.TAKEOFF:
             reached = bool(abs(self._pos[2] - self._traj.target[2]) < 0.3 and abs(self._vel[2]) < 0.5
                            and not self._on_ground)  # fmt: skip

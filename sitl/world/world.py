@@ -305,15 +305,15 @@ class World:
     def _imu_batch(self, rows: np.ndarray) -> None:
         acc, gyr = self.sensors.imu(rows[:, T_SPECIFIC_FORCE], rows[:, T_RATES])
         out = self.outputs
-        for i in range(rows.shape[0]):
-            out.imu.append((rows[i, 0], acc[i], gyr[i]))
-        k0 = self._imu_count
-        sel = [i for i in range(rows.shape[0]) if (k0 + i) % self.esc_every == 0]
-        if sel:
-            meas = self.sensors.esc(rows[sel][:, T_ROTORS])
-            for i, m in zip(sel, meas, strict=True):
-                out.esc.append((rows[i, 0], m))
-        self._imu_count += rows.shape[0]
+        t = rows[:, 0].tolist()
+        out.imu.extend(zip(t, acc, gyr, strict=True))
+        # the ESC samples: every esc_every-th IMU sample, counted across batches
+        k = rows.shape[0]
+        first = -self._imu_count % self.esc_every
+        if first < k:
+            sel = slice(first, k, self.esc_every)
+            out.esc.extend(zip(t[sel], self.sensors.esc(rows[sel, T_ROTORS]), strict=True))
+        self._imu_count += k
         self.last_truth = rows[-1].copy()
         if self.truth_log is not None:
             self.truth_log.append(rows.copy())
