@@ -14,7 +14,7 @@ from numba import njit
 
 from sitl.autopilot.controller import F_IDLE, SP_FLAGS, control
 from sitl.world.kernel import FLAG_CRASHED, Obstacles, physics_tick
-from sitl.world.wind.kernel import WindKernel, wind_velocity
+from sitl.world.wind.kernel import WindKernel, open_wind, urban_wind
 from vehicle.params import P_WMIN
 
 
@@ -29,10 +29,17 @@ def advance_controlled(
     cleared, else the cascaded controller. Returns the truth rows written to ``rows``."""
     nrow = 0
     w_cmd = np.zeros(4)
+    wind = np.empty(3)
+    st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of, ht, bb = wk  # once: see wind.kernel
     idle = int(sp[SP_FLAGS]) == F_IDLE
     for k in range(n):
         tick = tick0 + k
-        wind = wind_velocity(tick * dt, x[0:3], wk)
+        t = tick * dt
+        if uo:
+            wind[0], wind[1], wind[2] = urban_wind(t, x[0], x[1], x[2], to, ta, tr, uvw, ugp, un, ve, wd, uwp, tm, vt,
+                                                   of, ht, bb, False)  # fmt: skip
+        else:
+            wind[0], wind[1], wind[2] = open_wind(t, x[0], x[1], x[2], st, sv, lp, z0, il, to, ta, tr, uvw, False)
         if flags[FLAG_CRASHED] != 0.0:
             w_cmd[:] = 0.0
         elif idle:

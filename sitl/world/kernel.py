@@ -22,7 +22,7 @@ from numba import njit
 
 from sitl.world.dynamics import rk4_step
 from sitl.world.urban.geometry import building_at
-from sitl.world.wind.kernel import WindKernel, wind_velocity
+from sitl.world.wind.kernel import WindKernel, open_wind, urban_wind
 
 T_TIME = 0
 T_SPECIFIC_FORCE = slice(1, 4)  # FRD, m/s^2
@@ -100,9 +100,16 @@ def advance_commanded(
     a crashed vehicle's rotors get zero. Returns the number of truth rows written to ``rows``."""
     nrow = 0
     stopped = np.zeros(4)
+    wind = np.empty(3)
+    st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of, ht, bb = wk  # once: see wind.kernel
     for k in range(n):
         tick = tick0 + k
-        wind = wind_velocity(tick * dt, x[0:3], wk)
+        t = tick * dt
+        if uo:
+            wind[0], wind[1], wind[2] = urban_wind(t, x[0], x[1], x[2], to, ta, tr, uvw, ugp, un, ve, wd, uwp, tm, vt,
+                                                   of, ht, bb, False)  # fmt: skip
+        else:
+            wind[0], wind[1], wind[2] = open_wind(t, x[0], x[1], x[2], st, sv, lp, z0, il, to, ta, tr, uvw, False)
         cmd = stopped if flags[FLAG_CRASHED] != 0.0 else w_cmd
         nrow = physics_tick(tick, dt, x, cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
     return nrow

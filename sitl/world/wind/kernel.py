@@ -1,9 +1,10 @@
 """Numba kernels: the single implementation of wind sampling.
 
-Every sampler takes its parameters as one :class:`WindKernel` named tuple, so the kernels read
-``w.sched_vel`` rather than the ninth positional argument, and a new built-in model adds fields
-(and a branch) instead of a new argument list. The simulator calls :func:`wind_velocity` from
-its own njit physics loop; Python code calls the model's methods (:mod:`sitl.world.wind.field`).
+Every entry point takes its parameters as one :class:`WindKernel` named tuple, so a caller passes
+the model's ``kernel()`` rather than a list of positional arrays, and a new built-in model adds
+fields (and a branch) to the tuple. The per-sample functions :func:`open_wind` and
+:func:`urban_wind` take the fields unpacked (why: below); the simulator's physics loops unpack the
+tuple once and call one of them at every tick. Python code calls the model's methods (:mod:`sitl.world.wind.field`).
 
 Units: m, s, m/s; positions and velocities NED; wind = air-mass velocity.
 """
@@ -74,39 +75,23 @@ def _schedule_index(t: float, sched_t: np.ndarray) -> int:
     return lo
 
 
-# inline="always" on the per-tick helpers: a call passes the WindKernel tuple (about twenty arrays)
-# by value; inlined into the fused loop the simulator runs 12-15 % faster (benchmarks/README.md).
-@njit(cache=True, inline="always")
-def _mean_components(t: float, z: float, w: WindKernel) -> tuple[float, float, float, float, float]:
-    """(mean n, e, d at height -z; reference-height n, e) in m/s NED at time t."""
-    i = _schedule_index(t, w.sched_t)
-    vn = w.sched_vel[i, 0]
-    ve = w.sched_vel[i, 1]
-    vd = w.sched_vel[i, 2]
-    scale = 1.0
-    if w.log_profile:
-        h = -z
-        # max() with z0 makes the wind vanish smoothly at/below z0 instead of log(0) = -inf.
-        scale = math.log(max(h, w.z0) / w.z0) * w.inv_log_ref
-    return vn * scale, ve * scale, vd, vn, ve
+# Why the kernels unpack the tuple: numba copies a named tuple of arrays into every function it is
+# passed to, with a reference-count update of each array, inlined or not, and a call with many array
+# arguments costs the same way; with the urban arrays that was ~0.25 us per sample, five times the
+# sample itself (a 1,000-puff plume update spent 80 % of its time there). So the per-sample
+# functions take only the fields their model reads, every entry point unpacks the tuple once
+# before its loop (in the order of the class) and picks the model once: the open-terrain loop never
+# carries the urban arrays. The physics loops of :mod:`sitl.world.kernel` and
+# :mod:`sitl.autopilot.fused` do the same.
 
 
 @njit(cache=True, inline="always")
-def _urban_mean(x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float, float, float]:
-    """Like :func:`_mean_components` for the urban field: (mean n, e, d; reference-height n, e)."""
-    mn, me, md = urban_wind_at(x, y, z, w.ugp, w.u_n, w.v_e, w.w_d, w.uwp, w.verts, w.offsets, w.heights, w.bbox)
-    return mn, me, md, w.uwp[0] * w.uwp[4], w.uwp[0] * w.uwp[5]
-
-
-@njit(cache=True, inline="always")
-def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> tuple[float, float, float]:
-    """Air-mass velocity (m/s, NED) at NED point (x, y, z) and time t, as three floats."""
-    if w.urban_on:
-        mn, me, md, rn, re = _urban_mean(x, y, z, w)
-    else:
-        mn, me, md, rn, re = _mean_components(t, z, w)
-    if not w.turb_on:
-        return mn, me, md
+def _turbulence(
+    t: float, x: float, y: float, rn: float, re: float, taylor: bool, turb_rate: float, uvw: np.ndarray,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Turbulent velocity (m/s, NED) at (x, y) m and time t s, in a mean wind whose reference-height
+    components are (rn, re) m/s: the periodic u', v', w' series sampled (frozen, Taylor) and rotated
+    into NED (u' along the mean wind, v' 90 deg to its right, w' down)."""
     # The frozen field is advected by the reference-height mean wind, one speed for all
     # heights, so that the turbulence stays a single field even under a log profile.
     speed = math.sqrt(rn * rn + re * re)
@@ -118,11 +103,10 @@ def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> t
         ee = 0.0
     u_adv = max(speed, 1.0)
     tau = t
-    if w.taylor:
+    if taylor:
         tau = t - (x * en + y * ee) / u_adv
-    uvw = w.turb_uvw
     m = uvw.shape[0]
-    s = tau * w.turb_rate
+    s = tau * turb_rate
     s -= m * math.floor(s / m)  # periodic series: wrap into [0, m)
     i = int(s)
     if i >= m:  # s can round up to exactly m
@@ -134,46 +118,77 @@ def _wind_components(t: float, x: float, y: float, z: float, w: WindKernel) -> t
     up = uvw[i, 0] + frac * (uvw[j, 0] - uvw[i, 0])
     vp = uvw[i, 1] + frac * (uvw[j, 1] - uvw[i, 1])
     wp = uvw[i, 2] + frac * (uvw[j, 2] - uvw[i, 2])
-    if w.urban_on:  # stronger in wakes and canyons, weaker in sheltered air, none inside a building
-        m = urban_multiplier_at(x, y, z, w.ugp, w.tm, w.verts, w.offsets, w.heights, w.bbox)
-        up, vp, wp = m * up, m * vp, m * wp
-    # u' along e, v' along e rotated +90 deg about down, w' along NED down.
-    return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
+    return up * en - vp * ee, up * ee + vp * en, wp
+
+
+@njit(cache=True, inline="always")
+def open_wind(
+    t: float, x: float, y: float, z: float, sched_t: np.ndarray, sched_vel: np.ndarray, log_profile: bool,
+    z0: float, inv_log_ref: float, turb_on: bool, taylor: bool, turb_rate: float, uvw: np.ndarray, mean_only: bool,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Open-terrain air-mass velocity (m/s, NED) at NED (x, y, z) m, time t s: the schedule's wind at
+    the reference height, the log profile, turbulence unless ``mean_only``. The arguments after
+    ``z`` are the first nine fields of :class:`WindKernel`."""
+    i = _schedule_index(t, sched_t)
+    rn, re, md = sched_vel[i, 0], sched_vel[i, 1], sched_vel[i, 2]
+    scale = 1.0
+    if log_profile:
+        # max() with z0 makes the wind vanish smoothly at/below z0 instead of log(0) = -inf.
+        scale = math.log(max(-z, z0) / z0) * inv_log_ref
+    mn, me = rn * scale, re * scale
+    if mean_only or not turb_on:
+        return mn, me, md
+    tn, te, td = _turbulence(t, x, y, rn, re, taylor, turb_rate, uvw)
+    return mn + tn, me + te, md + td
+
+
+@njit(cache=True)
+def urban_wind(
+    t: float, x: float, y: float, z: float, turb_on: bool, taylor: bool, turb_rate: float, uvw: np.ndarray,
+    ugp: np.ndarray, u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray, uwp: np.ndarray, tm: np.ndarray,
+    verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray, mean_only: bool,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Urban air-mass velocity (m/s, NED) at NED (x, y, z) m, time t s: the solved field
+    (:mod:`sitl.world.urban`) and the turbulence scaled by its multiplier at the point (stronger in
+    wakes and canyons, weaker in sheltered air, none inside a building)."""
+    mn, me, md = urban_wind_at(x, y, z, ugp, u_n, v_e, w_d, uwp, verts, offsets, heights, bbox)
+    if mean_only or not turb_on:
+        return mn, me, md
+    tn, te, td = _turbulence(t, x, y, uwp[0] * uwp[4], uwp[0] * uwp[5], taylor, turb_rate, uvw)
+    k = urban_multiplier_at(x, y, z, ugp, tm, verts, offsets, heights, bbox)
+    return mn + k * tn, me + k * te, md + k * td
+
+
+@njit(cache=True)
+def _sample(t: float, pos: np.ndarray, w: WindKernel, mean_only: bool) -> np.ndarray:
+    """Air-mass velocities (N, 3) m/s NED at NED points ``pos`` (N, 3) m, time t s."""
+    st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of, ht, bb = w
+    n = pos.shape[0]
+    out = np.empty((n, 3))
+    if uo:
+        for k in range(n):
+            out[k, 0], out[k, 1], out[k, 2] = urban_wind(t, pos[k, 0], pos[k, 1], pos[k, 2], to, ta, tr, uvw, ugp, un,
+                                                         ve, wd, uwp, tm, vt, of, ht, bb, mean_only)  # fmt: skip
+    else:
+        for k in range(n):
+            out[k, 0], out[k, 1], out[k, 2] = open_wind(t, pos[k, 0], pos[k, 1], pos[k, 2], st, sv, lp, z0, il, to, ta,
+                                                        tr, uvw, mean_only)  # fmt: skip
+    return out
 
 
 @njit(cache=True)
 def wind_mean(t: float, pos: np.ndarray, w: WindKernel) -> np.ndarray:
     """Mean (non-turbulent) air-mass velocity (3,) m/s NED at NED ``pos`` (3,) m, time ``t`` s."""
-    if w.urban_on:
-        mn, me, md, _, _ = _urban_mean(pos[0], pos[1], pos[2], w)
-    else:
-        mn, me, md, _, _ = _mean_components(t, pos[2], w)
-    out = np.empty(3)
-    out[0] = mn
-    out[1] = me
-    out[2] = md
-    return out
+    return _sample(t, pos.reshape(1, 3), w, True)[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def wind_velocity(t: float, pos: np.ndarray, w: WindKernel) -> np.ndarray:
     """Air-mass velocity (3,) m/s NED (mean + turbulence) at NED ``pos`` (3,) m, time ``t`` s."""
-    vn, ve, vd = _wind_components(t, pos[0], pos[1], pos[2], w)
-    out = np.empty(3)
-    out[0] = vn
-    out[1] = ve
-    out[2] = vd
-    return out
+    return _sample(t, pos.reshape(1, 3), w, False)[0]
 
 
 @njit(cache=True)
 def wind_velocity_many(t: float, pos_many: np.ndarray, w: WindKernel) -> np.ndarray:
     """Air-mass velocities (N, 3) m/s NED at NED points ``pos_many`` (N, 3) m, time ``t`` s."""
-    n = pos_many.shape[0]
-    out = np.empty((n, 3))
-    for k in range(n):
-        vn, ve, vd = _wind_components(t, pos_many[k, 0], pos_many[k, 1], pos_many[k, 2], w)
-        out[k, 0] = vn
-        out[k, 1] = ve
-        out[k, 2] = vd
-    return out
+    return _sample(t, pos_many, w, False)
