@@ -88,10 +88,10 @@ def _schedule_index(t: float, sched_t: np.ndarray) -> int:
 @njit(cache=True, inline="always")
 def _turbulence(
     t: float, x: float, y: float, rn: float, re: float, taylor: bool, turb_rate: float, uvw: np.ndarray,
-) -> tuple[float, float, float]:  # fmt: skip
-    """Turbulent velocity (m/s, NED) at (x, y) m and time t s, in a mean wind whose reference-height
-    components are (rn, re) m/s: the periodic u', v', w' series sampled (frozen, Taylor) and rotated
-    into NED (u' along the mean wind, v' 90 deg to its right, w' down)."""
+) -> tuple[float, float, float, float, float]:  # fmt: skip
+    """Turbulence at (x, y) m and time t s in a mean wind whose reference-height components are
+    (rn, re) m/s: (u', v', w') m/s from the periodic series (frozen, Taylor) and the unit mean-wind
+    axis (en, ee); u' is along the axis, v' 90 deg to its right, w' down."""
     # The frozen field is advected by the reference-height mean wind, one speed for all
     # heights, so that the turbulence stays a single field even under a log profile.
     speed = math.sqrt(rn * rn + re * re)
@@ -118,7 +118,7 @@ def _turbulence(
     up = uvw[i, 0] + frac * (uvw[j, 0] - uvw[i, 0])
     vp = uvw[i, 1] + frac * (uvw[j, 1] - uvw[i, 1])
     wp = uvw[i, 2] + frac * (uvw[j, 2] - uvw[i, 2])
-    return up * en - vp * ee, up * ee + vp * en, wp
+    return up, vp, wp, en, ee
 
 
 @njit(cache=True, inline="always")
@@ -138,8 +138,10 @@ def open_wind(
     mn, me = rn * scale, re * scale
     if mean_only or not turb_on:
         return mn, me, md
-    tn, te, td = _turbulence(t, x, y, rn, re, taylor, turb_rate, uvw)
-    return mn + tn, me + te, md + td
+    up, vp, wp, en, ee = _turbulence(t, x, y, rn, re, taylor, turb_rate, uvw)
+    # u' along e, v' along e rotated +90 deg about down, w' along NED down (the order of the sums is
+    # the one of every recorded benchmark: results reproduce bit for bit).
+    return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
 
 
 @njit(cache=True)
@@ -154,9 +156,10 @@ def urban_wind(
     mn, me, md = urban_wind_at(x, y, z, ugp, u_n, v_e, w_d, uwp, verts, offsets, heights, bbox)
     if mean_only or not turb_on:
         return mn, me, md
-    tn, te, td = _turbulence(t, x, y, uwp[0] * uwp[4], uwp[0] * uwp[5], taylor, turb_rate, uvw)
+    up, vp, wp, en, ee = _turbulence(t, x, y, uwp[0] * uwp[4], uwp[0] * uwp[5], taylor, turb_rate, uvw)
     k = urban_multiplier_at(x, y, z, ugp, tm, verts, offsets, heights, bbox)
-    return mn + k * tn, me + k * te, md + k * td
+    up, vp, wp = k * up, k * vp, k * wp
+    return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
 
 
 @njit(cache=True)
