@@ -67,3 +67,17 @@ def test_bad_values_fail_fast_with_one_line(tmp_path, capsys) -> None:
         err = capsys.readouterr().err.strip()
         # (The altitude is refused before any connection: connecting would end in "no autopilot heartbeat".)
         assert says in err and len(err.splitlines()) == 1, (argv, err)
+
+
+def test_a_subcommand_imports_only_its_own_module():
+    """Every SITL, estimator and proxy process starts through the CLI: it imports the one subcommand
+    it runs, not all of them (importing every subcommand cost ~1.3 s of CPU per process), and the
+    full help still lists every command."""
+    code = ("import sys\nfrom windseek.cli import main\ntry:\n    main(['link-proxy', '--help'])\nexcept SystemExit:\n"
+            "    pass\nprint(sorted(m for m in sys.modules if m.startswith('windseek.cmd_') or m == 'scipy'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60).stdout
+    assert out.strip().splitlines()[-1] == "['windseek.cmd_link_proxy']", out
+    full = subprocess.run([sys.executable, "-m", "windseek.cli", "--help"], capture_output=True, text=True, timeout=60)
+    listed = full.stdout.split("{", 1)[1].split("}", 1)[0].split(",")
+    assert listed == ["sim", "search", "campaign", "estimate", "sitl", "mission", "review", "estimator", "demo",
+                      "link-proxy"], full.stdout

@@ -30,7 +30,15 @@ COMMANDS = [
 ]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def command_name(module: str) -> str:
+    """The subcommand a module registers: ``windseek.cmd_link_proxy`` -> ``link-proxy``."""
+    return module.rsplit(".cmd_", 1)[1].replace("_", "-")
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser with every subcommand, or with the one named ``only`` (a subcommand module imports
+    what it runs: scipy, numba kernels, MAVSDK; importing all of them cost ~1.3 s of CPU before any
+    command started, paid by every SITL, estimator and proxy process)."""
     numba_cache.configure()  # before any kernel module is imported by a subcommand
     parser = argparse.ArgumentParser(
         prog="windseek",
@@ -40,12 +48,21 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
-        importlib.import_module(name).add_parser(sub)
+        if only is None or command_name(name) == only:
+            importlib.import_module(name).add_parser(sub)
     return parser
 
 
+def _requested_command(argv: list[str]) -> str | None:
+    """The subcommand named on the command line (the first argument that is not an option), if it
+    is one; None otherwise (then the full parser reports the error or prints the help)."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    return first if first in {command_name(m) for m in COMMANDS} else None
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(_requested_command(argv))
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
