@@ -14,6 +14,7 @@ from sitl.link import SitlLink, UdpTransport
 from sitl.link.transports import Transport
 from sitl.scenario import Scenario, parse_scenario
 from sitl.simulation import Simulation
+from wire.dialect import mavlink as M  # noqa: N812
 
 #: Speed factor of the end-to-end tests: fast, but every stream keeps its rate on 2 shared cores.
 SPEED = 4.0
@@ -56,6 +57,21 @@ def running(transports: list[Transport], sc: Scenario | None = None, speed: floa
 
 def udp_to(port: int) -> UdpTransport:
     return UdpTransport([("127.0.0.1", port)], ("127.0.0.1", 0))
+
+
+#: The high-rate streams a ground-station test turns off, so that its socket carries what it asked for.
+HIGH_RATE_STREAMS = (M.MAVLINK_MSG_ID_HIL_SENSOR, M.MAVLINK_MSG_ID_HIGHRES_IMU, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+                     M.MAVLINK_MSG_ID_ESC_STATUS, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_ATTITUDE)
+
+
+@contextlib.contextmanager
+def quiet_running(port: int) -> Iterator[SitlLink]:
+    """A SITL streaming to UDP ``port`` on localhost without its high-rate streams (a ground-station
+    test's view: heartbeats, status and the answers to its requests)."""
+    with running([udp_to(port)]) as link:
+        for mid in HIGH_RATE_STREAMS:
+            link.streams.set_interval(mid, -1, 0.0)
+        yield link
 
 
 async def first(agen: AsyncIterator, pred: Callable[[Any], bool], timeout: float, what: str = "") -> Any:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from link_support import free_port, running, udp_to, wait_until
+from link_support import free_port, quiet_running, wait_until
 from pymavlink import mavutil
 
 from sitl.link import SitlLink
@@ -93,10 +93,7 @@ class Qgc:
 @pytest.fixture
 def sitl() -> Iterator[tuple[SitlLink, Qgc]]:
     port = free_port()
-    with running([udp_to(port)]) as link:
-        for mid in (M.MAVLINK_MSG_ID_HIL_SENSOR, M.MAVLINK_MSG_ID_HIGHRES_IMU, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
-                    M.MAVLINK_MSG_ID_ESC_STATUS, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_ATTITUDE):
-            link.streams.set_interval(mid, -1, 0.0)
+    with quiet_running(port) as link:
         qgc = Qgc(port)
         yield link, qgc
         qgc.conn.close()

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from link_support import autopilot, free_port, running, udp_to, wait_until
+from link_support import autopilot, free_port, quiet_running, running, udp_to, wait_until
 from pymavlink import mavutil
 
 from sitl.link import SitlLink
@@ -61,10 +61,7 @@ class Gcs:
 @pytest.fixture
 def sitl() -> Iterator[tuple[SitlLink, Gcs]]:
     port = free_port()
-    with running([udp_to(port)]) as link:
-        for mid in (M.MAVLINK_MSG_ID_HIL_SENSOR, M.MAVLINK_MSG_ID_HIGHRES_IMU, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
-                    M.MAVLINK_MSG_ID_ESC_STATUS, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_ATTITUDE):
-            link.streams.set_interval(mid, -1, 0.0)
+    with quiet_running(port) as link:
         gcs = Gcs(port)
         yield link, gcs
         gcs.conn.close()
