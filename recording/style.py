@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 #: The one timeline every entity is logged on: the vehicle's clock in seconds (a duration).
-#: In simulation it is the simulation time; in a log it is the autopilot's boot clock; the
+#: In simulation it is the simulation time; in a reviewed log the log's clock from its start; the
 #: mission's own lines and results use the same clock (durations are counted from arming).
 TIMELINE = "vehicle_time"
 AXES = ("north", "east", "down")
