@@ -65,8 +65,12 @@ def _at(src: Series, t: np.ndarray, max_age_s: float | None = None) -> tuple[np.
 def time_origin(fd: FlightData, track: EstimatorTrack | None = None) -> float:
     """The log clock's time [s] that the recording counts from: the whole seconds before the earliest
     time stamp of anything written (data, events, in-air changes, estimates); 0 for an empty log."""
-    firsts = [s.t[0] for s in fd.all_series() if len(s)] + [t for t, *_ in fd.texts[:1]] + \
-        [min(t for t, _ in fd.in_air)] * bool(fd.in_air) + ([track.t[0]] if track is not None and len(track.t) else [])
+    firsts = (
+        [s.t[0] for s in fd.all_series() if len(s)]
+        + [min(t for t, *_ in fd.texts)] * bool(fd.texts)
+        + [min(t for t, _ in fd.in_air)] * bool(fd.in_air)
+        + ([track.t[0]] if track is not None and len(track.t) else [])
+    )
     firsts = [float(t) for t in firsts if math.isfinite(float(t))]
     return float(math.floor(min(firsts))) if firsts else 0.0
 
@@ -80,8 +84,9 @@ def shifted(fd: FlightData, track: EstimatorTrack | None, dt: float) -> tuple[Fl
     if dt == 0.0:
         return fd, track
     names = ("imu", "attitude", "velocity", "rotors", "rotor_cmd", "position", "chem", "truth_wind", "autopilot_wind")
-    fd2 = replace(fd, **{n: _shift(getattr(fd, n), dt) for n in names},
-                  in_air=[(t - dt, a) for t, a in fd.in_air], texts=[(t - dt, x, lv) for t, x, lv in fd.texts])  # fmt: skip
+    texts = [(t - dt, x, lv) for t, x, lv in fd.texts]
+    fd2 = replace(fd, **{n: _shift(getattr(fd, n), dt) for n in names}, in_air=[(t - dt, a) for t, a in fd.in_air],
+                  texts=texts)  # fmt: skip
     tr2 = None if track is None else replace(track, t=track.t - dt, segment_start=track.segment_start - dt)
     return fd2, tr2
 
