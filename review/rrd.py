@@ -83,10 +83,10 @@ def shifted(fd: FlightData, track: EstimatorTrack | None, dt: float) -> tuple[Fl
     """The log and the estimate with every time stamp moved ``dt`` [s] earlier (the data are shared)."""
     if dt == 0.0:
         return fd, track
-    names = ("imu", "attitude", "velocity", "rotors", "rotor_cmd", "position", "chem", "truth_wind", "autopilot_wind")
-    texts = [(t - dt, x, lv) for t, x, lv in fd.texts]
-    fd2 = replace(fd, **{n: _shift(getattr(fd, n), dt) for n in names}, in_air=[(t - dt, a) for t, a in fd.in_air],
-                  texts=texts)  # fmt: skip
+    fd2 = replace(fd, in_air=[(t - dt, a) for t, a in fd.in_air], texts=[(t - dt, x, lv) for t, x, lv in fd.texts])
+    for name in ("imu", "attitude", "velocity", "rotors", "rotor_cmd", "position", "chem", "truth_wind",
+                 "autopilot_wind"):  # fmt: skip
+        setattr(fd2, name, _shift(getattr(fd, name), dt))
     tr2 = None if track is None else replace(track, t=track.t - dt, segment_start=track.segment_start - dt)
     return fd2, tr2
 
