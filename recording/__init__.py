@@ -14,7 +14,6 @@ The simulator, estimator and strategies never import rerun; they hand SI/NED dat
 - :mod:`recording.summary`: the run summary the recording carries;
 - :mod:`recording.finalize`: rewrite a finished recording with a new summary (``windseek demo``);
 - :mod:`recording.read`: read a saved ``.rrd`` back as numpy arrays;
-- :mod:`recording.snapshot`: screenshots of a recording in a headless viewer.
 """
 
 from recording.recorder import RunRecorder

@@ -10,6 +10,7 @@ seconds. The mission's wire names (``state: NAME``, ``SRC_N/E/D/CONF``) are thos
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -20,6 +21,15 @@ from recording.scene import SceneMixin
 from recording.style import STATE_TEXT, TEXT_LEVELS, VecLike
 
 SRC_KEYS = ("SRC_N", "SRC_E", "SRC_D")
+#: Terminal colour codes (PX4's "\x1b[32mReady for takeoff!\x1b[0m") and other control characters.
+_CONTROL = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|[\x00-\x08\x0b-\x1f\x7f]")
+_SYS_COMP = re.compile(r"^\[?(\d+):(\d+)\]?$")
+
+
+def readable(text: str) -> str:
+    """A line for the events log: terminal colour codes and control characters removed, tabs and
+    line breaks as spaces, surrounding blanks trimmed (autopilot messages carry all of these)."""
+    return " ".join(_CONTROL.sub("", text.replace("\t", " ").replace("\n", " ")).split())
 
 
 class EventsMixin(SceneMixin):
@@ -45,7 +55,7 @@ class EventsMixin(SceneMixin):
         self._line(t, text, level, channel)
 
     def _line(self, t: float, text: str, level: str = "INFO", channel: str = "events") -> None:
-        self.log_at(t, f"log/{channel}", rr.TextLog(text, level=level))
+        self.log_at(t, f"log/{channel}", rr.TextLog(readable(text), level=level))
 
     def _phase(self, t: float, phase: str | None) -> None:
         if phase is None:
@@ -110,6 +120,8 @@ class EventsMixin(SceneMixin):
         if text.startswith(STATE_PREFIX):
             self.strategy_state(t, text[len(STATE_PREFIX) :].strip())
         else:
+            if (m := _SYS_COMP.match(who)) is not None:  # an unknown sender, named by its MAVLink ids
+                who = f"system {m[1]} component {m[2]}"
             self.text(t, f"{who}: {text}", level, channel="mission" if who == "mission" else "wire")
 
     def mission_named_value(self, t: float, name: str, value: float) -> None:
@@ -132,4 +144,4 @@ class EventsMixin(SceneMixin):
 
 
 
-__all__ = ["SRC_KEYS", "EventsMixin"]
+__all__ = ["SRC_KEYS", "EventsMixin", "readable"]

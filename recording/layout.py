@@ -113,7 +113,7 @@ def plot_view(key: str, lay: Layout) -> rrb.View:
     query = [f"$origin/{c}" for c in contents]
     if rng is None:  # an axis fitted by the viewer: the early, wide uncertainty band would flatten the rest
         query.append("- $origin/band")
-    elif lay.markers:  # markers span +-1e6: only on a fixed value axis
+    elif lay.markers:  # markers span +-1e4: only on a fixed value axis
         query.append("/markers/**")
     return rrb.TimeSeriesView(
         origin=origin, contents=query, name=title,
@@ -171,15 +171,16 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     )  # fmt: skip
     summary = rrb.TextDocumentView(origin="/summary", name=PANELS["summary"])
     left = rrb.Vertical(map_view(lay), rrb.Horizontal(view_3d(lay), summary, column_shares=[1, 1]), events,
-                        row_shares=[3, 2, 1])  # fmt: skip
+                        row_shares=[5, 3, 3])  # fmt: skip
     wind_ned = rrb.Vertical(plot_view("north", lay), plot_view("east", lay), plot_view("down", lay),
                             name="wind north / east / down")  # fmt: skip
     right = rrb.Vertical(
         phases, plot_view("chem", lay),
         rrb.Horizontal(plot_view("speed", lay), plot_view("direction", lay)),
         rrb.Tabs(wind_ned, plot_view("rotors", lay), active_tab=0),
-        # The phase view shows its three lanes; every plot gets >= 20 px per unit of its value axis.
-        row_shares=[1.25, 1.0, 1.1, 3.4],
+        # The phase view shows its three lanes; every plot gets >= 20 px per unit of its value axis; a
+        # "no data" line needs no plot's height.
+        row_shares=[1.25, 0.35 if "chem" in lay.missing else 1.0, 1.1, 3.4],
     )  # fmt: skip
     return rrb.Blueprint(
         rrb.Horizontal(left, right, column_shares=[1, 1]),

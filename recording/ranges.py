@@ -2,8 +2,9 @@
 
 A plot opened on its full data range is often unreadable: the estimator's first seconds carry
 +-10 m/s of uncertainty and a touchdown spikes the vertical wind. :func:`fit_ranges` takes robust
-percentiles of the series that matter in each plot (truth, estimate, raw; never the band) over the
-flight and pads them, so the band and the spikes run off the edge instead of flattening the rest.
+percentiles of the series that matter in each plot (truth, estimate, raw, and the +-2 sigma band's
+typical edges) over the flight and pads them, so the early wide band and the spikes run off the edge
+instead of flattening the rest.
 The padding is small (a tenth of the span each side): the viewer labels a value axis only when its
 unit steps are about 20 px apart, and the wind plots are ~110 px tall in a 1000 px window.
 """
@@ -52,6 +53,14 @@ def fit_ranges(rec: _HasValues, t_range: tuple[float, float]) -> dict[str, tuple
     out: dict[str, tuple[float, float]] = {}
     for a in AXES:
         r = robust_range(_collect(rec, (f"wind/{a}/truth", f"wind/{a}/estimate", f"wind/{a}/autopilot"), t0, t1))
+        band = _collect(rec, (f"wind/{a}/band",), t0, t1)
+        if r is not None and len(band):
+            # The band's typical edges (its rows alternate between them: the quartiles of all rows are
+            # about the medians of the lower and the upper edge) stay on the plot, so a band wider than
+            # the data reads as a band and not as a filled plot; early, wider ones still run off.
+            lo, hi = (float(x) for x in np.percentile(band, (25.0, 75.0)))
+            pad = 0.1 * (hi - lo)
+            r = (round(min(r[0], lo - pad), 3), round(max(r[1], hi + pad), 3))
         if r is not None:
             out[a] = r
     sp = _collect(rec, ("wind/speed/truth", "wind/speed/filtered", "wind/speed/raw", "wind/speed/autopilot"), t0, t1)

@@ -8,6 +8,7 @@ typical run) and queried by entity path. Paths may be given with or without the 
     log = RrdLog("logs/run.rrd")
     log.entity_paths()                     # ['chem/threshold', 'chem/value', ..., 'world/vehicle']
     t, v = log.scalars("rotors/1")         # t [s] (N,), v (N,) sorted by vehicle time
+    t, lo, hi = log.band("wind/north/band")  # the +-2 sigma band's edges
     t, p = log.vectors("world/vehicle", "Transform3D:translation")   # (N,), (N, 3)
     log.summary()                          # the RunSummary the recording carries
     log.states("phases/mission")           # [(t, "take-off"), (t, "search"), ...]
@@ -170,6 +171,14 @@ class RrdLog:
         if arr.ndim == 2 and arr.shape[1] == 1:
             arr = arr[:, 0]
         return t, arr
+
+    def band(self, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A +-2 sigma band (``wind/<axis>/band``, written as two rows per sample): t [s] (N,), lower
+        and upper edge (N,) each."""
+        t, v = self.scalars(entity)
+        n = len(t) // 2
+        a, b = v[0 : 2 * n : 2], v[1 : 2 * n : 2]
+        return t[0 : 2 * n : 2], np.minimum(a, b), np.maximum(a, b)
 
     def vectors(self, entity: str, component: str, timeline: str = TIMELINE) -> tuple[np.ndarray, np.ndarray]:
         """A per-row 3-vector component (e.g. ``"Transform3D:translation"``): t (N,), (N, 3).

@@ -8,7 +8,8 @@ goes) in NED; wind directions are the meteorological from-direction in degrees.
 Entity paths besides the map and 3D ones (:mod:`recording.scene`)::
 
     wind/{north,east,down}/{truth,estimate,autopilot}   Scalars, m/s
-    wind/{north,east,down}/band        Scalars, 2 per row: estimate -+ 2 sigma (one band, one legend entry)
+    wind/{north,east,down}/band        Scalars: estimate -+ 2 sigma, two rows per sample (one line zig-zagging
+                                       between the edges: a band, one legend entry; RrdLog.band pairs them)
     wind/speed/{raw,filtered,truth,autopilot}            horizontal wind speed, m/s
     wind/direction/{raw,filtered,truth}  from-direction, deg, unwrapped about the first value (no 0/360 jumps)
     chem/value, chem/threshold         mg/m^3 (the data);  chem/log10, chem/threshold_log10 (the plot)
@@ -62,8 +63,12 @@ from recording.style import (
 )
 from recording.summary import RunSummary
 
-#: Marker lines span this far up and down [plot units]: every plot has a fixed value range.
-MARKER_SPAN = 1.0e6
+#: Time between the two edges of one crossing of the +-2 sigma band [s] (far below a pixel).
+BAND_DT = 1.0e-4
+#: Marker lines span this far up and down [plot units]: every plot has a fixed value range. Above
+#: every plot's values (rotor speeds stay below 1e4 rad/s), not far beyond: the viewer drops a line
+#: that ends ~1e7 px off its plot (at 1e6 the markers vanished from a 1 m/s wind plot 100 px tall).
+MARKER_SPAN = 1.0e4
 _MARKERS = {"phase": ("take-off · search · landing", C_MARK_PHASE), "verify": ("verification", C_MARK_VERIFY),
             "declared": ("declared", C_MARK_DECLARED)}  # fmt: skip
 
@@ -100,6 +105,7 @@ class RunRecorder(EventsMixin):
         self.chem_threshold: float | None = None
         self._summary: RunSummary | None = None
         self._dir_ref: float | None = None
+        self._band_up = True
         self._init_events()
         self.rec.send_recording_name(" / ".join(str(s) for s in (scenario, strategy) if s) or "windseek run")
         self.property("windseek", scenario=scenario, strategy=strategy, seed=seed)
@@ -114,8 +120,10 @@ class RunRecorder(EventsMixin):
             self._style(f"wind/{a}/truth", "truth", C_TRUTH, 2.0)
             self._style(f"wind/{a}/estimate", "estimate", C_EST, 2.0)
             self._style(f"wind/{a}/autopilot", "autopilot", C_AUTOPILOT, 1.5)
-            self.log_static(f"wind/{a}/band", rr.SeriesLines(names=["±2σ", "±2σ"], colors=[C_BAND, C_BAND],
-                                                             widths=[1.5, 1.5]))  # fmt: skip
+            # The band is one line zig-zagging between its edges (see wind()): never averaged, or the
+            # viewer's aggregation of several rows per pixel would fold it onto the estimate.
+            self.log_static(f"wind/{a}/band", rr.SeriesLines(names="±2σ band", colors=[C_BAND], widths=1.0,
+                                                             aggregation_policy="Off"))  # fmt: skip
         for q in ("speed", "direction"):
             self._style(f"wind/{q}/filtered", "filtered", C_EST, 2.0)
             self._style(f"wind/{q}/truth", "truth", C_TRUTH, 2.0)
@@ -140,17 +148,31 @@ class RunRecorder(EventsMixin):
     def wind(self, t: float, truth_ned: VecLike | None = None, est_ned: VecLike | None = None,
              sigma_ned: VecLike | None = None) -> None:  # fmt: skip
         """Wind per NED axis [m/s]: truth, estimate, and the band estimate -+ 2 sigma (``sigma_ned`` is
-        the 1-sigma standard deviation per axis, needs ``est_ned``)."""
+        the 1-sigma standard deviation per axis, needs ``est_ned``).
+
+        Rerun 0.41 cannot fill between two lines, so the band is one translucent line that crosses
+        it at every sample: two rows, one edge at ``t`` and the other :data:`BAND_DT` later, the
+        order alternating (up at one sample, down at the next, along an edge in between). At the
+        estimator's 10-25 Hz a flight's plot has several crossings per pixel, which read as a
+        filled band; zoomed in, as a hatched one."""
         t = float(t)
+        band = sigma_ned is not None and est_ned is not None
+        t_last = max(self.t_last, t)  # the band's second row is not a later time of the run
         for k, a in enumerate(AXES):
             if truth_ned is not None:
                 self._push(f"wind/{a}/truth", t, truth_ned[k])
             if est_ned is not None:
                 e = float(est_ned[k])
                 self._push(f"wind/{a}/estimate", t, e)
-                if sigma_ned is not None and math.isfinite(e) and math.isfinite(float(sigma_ned[k])):
+                if band and sigma_ned is not None:
                     s = 2.0 * float(sigma_ned[k])
-                    self._push_row(f"wind/{a}/band", rr.Scalars, t, width=2, scalars=(e - s, e + s))
+                    if math.isfinite(e) and math.isfinite(s):
+                        first, second = (e - s, e + s) if self._band_up else (e + s, e - s)
+                        self._push(f"wind/{a}/band", t, first)
+                        self._push(f"wind/{a}/band", t + BAND_DT, second)
+        if band:
+            self._band_up = not self._band_up
+            self.t_last = t_last
         self._maybe_flush(t)
 
     def set_wind_reference(self, from_deg: float) -> None:
@@ -327,4 +349,4 @@ class RunRecorder(EventsMixin):
         self.close()
 
 
-__all__ = ["MARKER_SPAN", "RunRecorder"]
+__all__ = ["BAND_DT", "MARKER_SPAN", "RunRecorder"]

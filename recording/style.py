@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 #: The one timeline every entity is logged on: the vehicle's clock in seconds (a duration).
-#: In simulation it is the simulation time; in a log it is the autopilot's boot clock; the
+#: In simulation it is the simulation time; in a reviewed log the log's clock from its start; the
 #: mission's own lines and results use the same clock (durations are counted from arming).
 TIMELINE = "vehicle_time"
 AXES = ("north", "east", "down")
@@ -25,7 +25,9 @@ VecLike = Sequence[float] | np.ndarray
 
 C_TRUTH: Rgb = (31, 119, 180)  # blue
 C_EST: Rgb = (255, 127, 14)  # orange
-C_BAND: tuple[int, int, int, int] = (255, 127, 14, 110)  # translucent orange: the +-2 sigma band
+#: Translucent orange: the +-2 sigma band, drawn as a line crossing it several times per pixel (the
+#: crossings overlap, so it looks more opaque than its alpha; the estimate's line must show through).
+C_BAND: tuple[int, int, int, int] = (255, 127, 14, 60)
 C_RAW: Rgb = (150, 150, 150)  # grey
 C_THRESH: Rgb = (214, 39, 40)  # red: the detection threshold
 C_AUTOPILOT: Rgb = (44, 160, 44)  # green: an autopilot's own wind estimate (reviews)

@@ -130,8 +130,10 @@ class RunSummary:
         """The summary as Markdown (what the summary panel shows): the result and the key figures
         first, as short lines, then the details."""
         self.score()
-        found = {True: "**FOUND**", False: "**NOT FOUND**", None: "not scored"}[self.found]
-        lines = [f"### {self.title()}", "", f"{found}: {self.outcome}. _{self.kind}_", ""]
+        found = {True: "**FOUND**: ", False: "**NOT FOUND**: ", None: "not scored: "}[self.found]
+        if self.found is None and self.declared_ned is None and not self.outcome.startswith("no declaration"):
+            found = ""  # a result of its own (a flight log review's wind figure): nothing to score
+        lines = [f"### {self.title()}", "", f"{found}{self.outcome}. _{self.kind}_", ""]
         lines += [f"- {x}" for x in self._key_lines()]
         lines += [f"- {k}: {v}" for k, v in self.extra.items()]
         lines += ["", "#### Times (vehicle clock, s)", ""]
@@ -186,9 +188,9 @@ class RunSummary:
 
 
 READING_NOTES = (
-    "Clock: every panel uses vehicle time (simulation time, or the autopilot's boot clock in a log); "
-    "durations such as the time to declaration count from arming.",
-    "Time series: truth blue, estimate orange with its ±2σ band (two light lines), raw estimate grey; "
+    "Clock: every panel uses vehicle time (simulation time; in a reviewed log, the time since the log's "
+    "start); durations such as the time to declaration count from arming.",
+    "Time series: truth blue, estimate orange inside its light orange ±2σ band, raw estimate grey; "
     "vertical lines mark take-off, search start, landing (grey), each verification sweep (purple) and the "
     "declaration (green).",
     "Chemical: log10 of the reading in mg/m³; a reading of 0 (below detection) is drawn at the bottom edge, "

@@ -132,13 +132,13 @@ def review(
     if can:
         track = run_estimator(fd, params, config, rate_hz, imu_rate_hz, progress.stage("estimating"))
         trust = trust_mask(fd, track, settle_s, min_height_m)
+    model = model_caveat(fd.vehicle_type, str(vehicle), simulated=fd.family == "windseek SITL")
+    summary = summarize(fd, track, trust, missing, out, settle_s, min_height_m, model)
     tick = progress.stage("writing")
-    write_rrd(fd, track, None if trust is None else trust.ok, out, missing, rate_hz)
+    write_rrd(fd, track, None if trust is None else trust.ok, out, missing, rate_hz, figure=summary)
     if tick is not None:
         tick(1.0)
-    model = model_caveat(fd.vehicle_type, str(vehicle), simulated=fd.family == "windseek SITL")
-    return ReviewResult(fd, track, out, missing, summarize(fd, track, trust, missing, out, settle_s, min_height_m,
-                                                           model))  # fmt: skip
+    return ReviewResult(fd, track, out, missing, summary)
 
 
 __all__ = ["ReviewResult", "read_flight", "review"]

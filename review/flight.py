@@ -6,7 +6,7 @@ recording. Everything is SI, NED/FRD; wind is the air-mass velocity in NED (m/s)
 ``[w, x, y, z]`` body FRD -> NED; rotor speeds are rad/s in the rotor order of
 ``vehicle.rotor_model`` (1 front right, 2 rear right, 3 rear left, 4 front left). Times are
 seconds of the autopilot's boot clock (the project's SITL: simulation time), the same clock as the
-log's own time stamps; the Rerun ``sim_time`` timeline uses it.
+log's own time stamps; the review's recording counts it from the log's start (:mod:`review.rrd`).
 
 The data are columns (:class:`Series`, one array per quantity, sorted by time), so that a reader
 converts a whole topic or message type at once and a 100 MB log costs no per-sample Python objects.

@@ -15,12 +15,20 @@
     rotors/{1..4}                         rotor speeds, rad/s (measured, or implied)
     log/events                            mode, arming and autopilot messages
     log/review                            what was present, missing and not trusted
+
+Time: the ``vehicle_time`` timeline of the live recordings, counted from the log's start: the log's
+own clock minus its whole seconds before the first sample (:func:`time_origin`). A PX4 SITL ULog
+stamped in UNIX time (1.7e9 s) then reads 0..31 s like its flight, not "+19800d"; a boot clock that
+starts within its first second (the project's SITL) keeps its times. The origin is in the summary.
 """
 
 from __future__ import annotations
 
 import math
+import time
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +60,43 @@ def _at(src: Series, t: np.ndarray, max_age_s: float | None = None) -> tuple[np.
     if max_age_s is not None:
         ok &= (t - src.t[np.maximum(j, 0)]) <= max_age_s
     return src.v[np.maximum(j, 0)] if len(src) else np.zeros((len(t), src.v.shape[1])), ok
+
+
+def time_origin(fd: FlightData, track: EstimatorTrack | None = None) -> float:
+    """The log clock's time [s] that the recording counts from: the whole seconds before the earliest
+    time stamp of anything written (data, events, in-air changes, estimates); 0 for an empty log."""
+    firsts = (
+        [s.t[0] for s in fd.all_series() if len(s)]
+        + [min(t for t, *_ in fd.texts)] * bool(fd.texts)
+        + [min(t for t, _ in fd.in_air)] * bool(fd.in_air)
+        + ([track.t[0]] if track is not None and len(track.t) else [])
+    )
+    firsts = [float(t) for t in firsts if math.isfinite(float(t))]
+    return float(math.floor(min(firsts))) if firsts else 0.0
+
+
+def _shift(s: Series, dt: float) -> Series:
+    return Series(s.t - dt, s.v, s.name)
+
+
+def shifted(fd: FlightData, track: EstimatorTrack | None, dt: float) -> tuple[FlightData, EstimatorTrack | None]:
+    """The log and the estimate with every time stamp moved ``dt`` [s] earlier (the data are shared)."""
+    if dt == 0.0:
+        return fd, track
+    fd2 = replace(fd, in_air=[(t - dt, a) for t, a in fd.in_air], texts=[(t - dt, x, lv) for t, x, lv in fd.texts])
+    for name in ("imu", "attitude", "velocity", "rotors", "rotor_cmd", "position", "chem", "truth_wind",
+                 "autopilot_wind"):  # fmt: skip
+        setattr(fd2, name, _shift(getattr(fd, name), dt))
+    tr2 = None if track is None else replace(track, t=track.t - dt, segment_start=track.segment_start - dt)
+    return fd2, tr2
+
+
+def origin_text(t0: float) -> str:
+    """What time 0 of the recording is on the log's clock (a UNIX time as a date, UTC)."""
+    if t0 > 1.0e9:  # after 2001-09: a UNIX time stamp, not a boot clock
+        when = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(t0))
+        return f"time 0 = {t0:.0f} s of the log's clock (UNIX time: {when})"
+    return f"time 0 = {t0:.0f} s of the log's clock (the autopilot's boot clock)"
 
 
 def _pose(rec: ReviewRecorder, fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | None,
@@ -89,15 +134,30 @@ def _estimate(rec: ReviewRecorder, track: EstimatorTrack, ok: np.ndarray) -> Non
                 rec.scalar(t, f"{UNTRUSTED}/{a}", float(track.wind[i, k]))
 
 
+def outcome_text(figure: dict[str, Any] | None) -> str:
+    """The review's result in one line, from its summary (:func:`review.summary.summarize`)."""
+    if not figure:
+        return ""
+    if not figure.get("wind_figure"):
+        return f"no wind figure: {figure.get('wind_figure_reason') or 'wind not estimated'}"
+    m = figure["wind_mean_ned_ms"]
+    return (f"wind {figure['wind_speed_mean_ms']:.2f} m/s from {figure['wind_from_mean_deg']:.0f}° (mean of "
+            f"{figure['samples_scored']} trusted estimates: N {m[0]:.2f} E {m[1]:.2f} D {m[2]:.2f} m/s)")  # fmt: skip
+
+
 def write_rrd(fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | None, out: Path, missing: list[str],
-              rate_hz: float = 25.0) -> None:  # fmt: skip
-    """Write the recording (see the module docstring); ``ok`` marks the trusted rows of ``track``."""
+              rate_hz: float = 25.0, figure: dict[str, Any] | None = None) -> None:  # fmt: skip
+    """Write the recording (see the module docstring); ``ok`` marks the trusted rows of ``track``;
+    ``figure``, the review's summary, gives the recording summary's result line."""
     dt = 1.0 / rate_hz
+    origin = time_origin(fd, track)
+    fd, track = shifted(fd, track, origin)
     t0 = fd.time_range[0]
     t0 = 0.0 if not math.isfinite(t0) else t0
     with ReviewRecorder(out, scenario=fd.path.name, strategy="review") as rec:
         used = ", ".join(f"{k} <- {v}" for k, v in sorted(fd.sources.items()))
         rec.text(t0, f"review of {fd.path.name} ({fd.kind}, {fd.autopilot}): inputs {used}", "INFO", channel="review")
+        rec.text(t0, origin_text(origin), "INFO", channel="review")
         for m in missing + fd.warnings:
             rec.text(t0, m, "WARN", channel="review")
         for n in fd.notes + fd.imu_notes:
@@ -128,7 +188,8 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | Non
         rec.summary(RunSummary(kind=f"flight log review ({fd.kind} from {fd.autopilot}, {fd.duration_s:.1f} s)",
                                scenario=fd.path.name, wind_source="our estimator re-run offline on the logged "
                                "sensors" if track is not None and len(track.t) else "none: wind not estimated",
-                               missing=list(missing), extra={"inputs": used or "none"}))  # fmt: skip
+                               missing=list(missing), outcome=outcome_text(figure),
+                               extra={"clock": origin_text(origin), "inputs": used or "none"}))  # fmt: skip
 
 
-__all__ = ["ReviewRecorder", "decimate", "write_rrd"]
+__all__ = ["ReviewRecorder", "decimate", "origin_text", "outcome_text", "shifted", "time_origin", "write_rrd"]

@@ -16,7 +16,7 @@ import pytest
 
 from recording.layout import LEGEND_PAD
 from recording.read import RrdLog
-from recording.recorder import MARKER_SPAN, RunRecorder
+from recording.recorder import BAND_DT, MARKER_SPAN, RunRecorder
 from recording.sim_hook import record_simulation, wind_speed_from_deg
 from recording.style import TIMELINE, conc_image, log_colormap, posterior_image
 from sitl.scenario import load_scenario
@@ -195,13 +195,23 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
         a.sources([[10.0, 0.0, -1.0]], declared_ned=[9.0, 1.0, -1.0], confidence=0.9)
         a.geofence([-20.0, -20.0, -30.0], [20.0, 20.0, 0.0])
         a.text(1.0, "surge", "warn", channel="strategy")
+        a.autopilot_event(1.2, "[commander] \x1b[32mReady for takeoff!\x1b[0m\t")
+        a.mission_statustext(1.5, "holding", who="245:190")
         with pytest.raises(ValueError, match="level"):
             a.text(1.0, "x", "LOUD")
     la, lb = RrdLog(path_a), RrdLog(path_b)
-    t, band = la.scalars("wind/north/band")
-    assert band.shape == (20, 2) and t[-1] == pytest.approx(1.9)  # one entity, two edges per row
-    np.testing.assert_allclose(band, [[-5.0, -3.0]] * 20)  # -4 -+ 2 * 0.5
-    np.testing.assert_allclose(la.scalars("wind/east/band")[1], [[0.5, 1.5]] * 20)
+    # The band is one series crossing it at every sample (Rerun 0.41 cannot fill between two lines): two
+    # rows per sample, BAND_DT apart, up at one sample and down at the next.
+    t2, zig = la.scalars("wind/north/band")
+    assert zig.shape == (40,) and np.all(np.diff(t2) > 0.0)
+    np.testing.assert_allclose(np.diff(t2)[0::2], BAND_DT, atol=2e-9)
+    np.testing.assert_allclose(zig[:4], [-5.0, -3.0, -3.0, -5.0])  # -4 -+ 2 * 0.5: up, then down
+    t, lo, hi = la.band("wind/north/band")
+    assert len(t) == 20 and t[-1] == pytest.approx(1.9)
+    np.testing.assert_allclose(lo, -5.0)
+    np.testing.assert_allclose(hi, -3.0)
+    _, lo, hi = la.band("wind/east/band")
+    np.testing.assert_allclose(np.column_stack([lo, hi]), [[0.5, 1.5]] * 20)
     _, raw = la.scalars("wind/direction/raw")
     assert len(raw) == 19  # the NaN sample is a gap, not a point
     # Unwrapped about the first value (the filtered 370 = 10 deg): 351 .. 9 deg as -9 .. 9, no jump at 0.
@@ -224,6 +234,9 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     assert la.column("world/sources/declared/label", "Points3D:labels")[1] == [["declared 90%"]]
     assert la.column("world/sources/true/label", "Points3D:labels")[1] == [["source"]]
     assert la.texts("log/strategy") == [(pytest.approx(1.0), "surge")]
+    # Events read as sentences: PX4's terminal colours, tabs and an unknown sender's MAVLink ids.
+    assert la.texts("log/events")[-1][1] == "[commander] Ready for takeoff!"
+    assert la.texts("log/wire") == [(pytest.approx(1.5), "system 245 component 190: holding")]
     _, lvl = la.column("log/strategy", "TextLog:level")
     assert lvl == [["WARN"]]
     assert "map/geofence" in la.entity_paths() and "world/geofence" in la.entity_paths()

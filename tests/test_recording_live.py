@@ -131,9 +131,9 @@ def test_wire_wind_band_and_summary(flight: tuple[_Flight, Path]) -> None:
     f, path = flight
     log = RrdLog(path)
     t, est = log.scalars("wind/north/estimate")
-    _, band = log.scalars("wind/north/band")
-    assert len(t) > 200 and band.shape == (len(t), 2)
-    np.testing.assert_allclose(band[:, 1] - band[:, 0], 4.0 * math.sqrt(0.08 / 2.0), rtol=1e-5)  # 2 sigma each side
+    tb, lo, hi = log.band("wind/north/band")
+    assert len(t) > 200 and len(tb) == len(t)
+    np.testing.assert_allclose(hi - lo, 4.0 * math.sqrt(0.08 / 2.0), rtol=1e-5)  # 2 sigma each side
     s = log.summary()
     assert s is not None and s.kind.startswith("windseek sitl")
     assert s.found is False and s.error_m == pytest.approx(math.hypot(22.0, 0.5), abs=0.01)  # 38 m vs 60 m

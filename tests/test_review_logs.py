@@ -91,6 +91,41 @@ def test_hover_take_off_transient_is_not_plotted_as_wind(reviews: dict[str, Revi
     assert abs(s["wind_mean_ned_ms"][2]) < 2.0
 
 
+def test_review_counts_time_from_the_log_start(reviews: dict[str, ReviewResult]) -> None:
+    """The PX4 SITL hover log is stamped in UNIX time (1.71e9 s): its recording counts from the log's
+    start on the live runs' timeline, so the viewer's axes read 0..31 s and the plots open on the
+    flight, not "+19800d"; the VTOL hop's boot clock (logging from 19.4 s) reads from 0 too."""
+    from pyulog import ULog
+
+    from recording.style import TIMELINE
+
+    r = reviews["px4-sitl-quad-hover.ulg"]
+    log = RrdLog(r.out)
+    assert TIMELINE in log.timelines()
+    u = ULog(str(_log("px4-sitl-quad-hover.ulg")), ["esc_status"])
+    assert u.start_timestamp * 1e-6 == pytest.approx(1710773350.346)  # UNIX time; first event at .126 s
+    t, _ = log.scalars("rotors/1")
+    esc_t0 = u.get_dataset("esc_status").data["timestamp"][0] * 1e-6
+    assert abs(t[0] - (esc_t0 - 1710773350.0)) < 1e-3  # the log's clock minus 1710773350 s
+    assert 0.0 <= t[0] < 1.0 and 30.0 < t[-1] < 32.0  # 31.1 s of log
+    events = [ti for e in log.temporal_entity_paths() if e.startswith("log/") for ti, _ in log.texts(e)]
+    assert min(events) >= 0.0 and max(events) < 32.0
+    s = log.summary()
+    assert s is not None and s.t_arm_s is not None and s.t_disarm_s is not None
+    assert 14.0 < s.t_arm_s < 17.0 and 29.0 < s.t_disarm_s < 32.0  # armed 15.3 s, landed 30.5 s into the log
+    assert "UNIX time: 2024-03-18 14:49:10 UTC" in s.extra["clock"]
+    # Every plot and the phase lanes open on the flight: from before arming to after the disarm.
+    ranges = log.blueprint_time_ranges()
+    assert len(ranges) >= 4, ranges  # the wind plots and the phase lanes (no chemical, no NED plots missing)
+    for t0, t1 in ranges:
+        assert 0.0 <= t0 <= s.t_arm_s and s.t_disarm_s <= t1 <= 31.5 * 1.5, (t0, t1)
+    # The summary's result line is the review's wind figure.
+    assert s.outcome.startswith(f"wind {r.summary['wind_speed_mean_ms']:.2f} m/s from")
+    hop = RrdLog(reviews["px4-vtol-short-hop.ulg"].out)
+    t, _ = hop.scalars("wind/north/autopilot")
+    assert 0.0 <= t[0] < 2.0 and t[-1] < 8.0  # wind_estimate from 20.3 s of the boot clock; origin 19 s
+
+
 def _first(path: Path, mtype: str) -> Any:
     conn = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
     try:
