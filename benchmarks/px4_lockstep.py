@@ -1,27 +1,37 @@
 """Lockstep speed of PX4 SITL with windseek as its simulator, and PX4's own SIH in the same run.
 
-Two runs, one after the other, each with PX4 hovering at 10 m after an arm + take-off through
+Per round, one run after the other, each with PX4 hovering at 10 m after an arm + take-off through
 pymavlink on its API link:
 
 1. ``windseek sitl open-field --px4 --px4-free`` (lockstep as fast as PX4 answers: one TCP round
-   trip per 4 ms step) + PX4 SITL airframe 10016 with windseek's parameters, no flight log;
+   trip per 4 ms step) + PX4 SITL airframe 10016 with windseek's parameters, no flight log; once
+   per ``--windseek-repo`` checkout (default: this one; give two to compare a change with its base
+   in the same session: ``--windseek-repo . --windseek-repo /path/to/main``);
 2. the peer: PX4 SITL airframe 10040 (SIH, PX4's own quad physics inside the PX4 process, same
    250 Hz lockstep step) with ``PX4_SIM_SPEED_FACTOR=1000`` (as fast as PX4 runs), no flight log.
 
-Printed per run, over a window of ``--seconds`` wall seconds in hover: the speed (simulated
-seconds per wall second, from PX4's own clock on its telemetry), the CPU each process used per
-4 ms step (all threads; PX4 runs its modules on several threads, so its CPU per step can exceed
-its wall time per step), and the load average; then the ratio of the two speeds. The speeds
-depend on the machine's load (2 shared cores here); the CPU per step much less.
+``--rounds R`` repeats that sequence (interleaved, so the machine's load falls on every variant
+alike). Printed per run, over ``--windows`` windows of ``--seconds`` wall seconds in hover: the
+speed (simulated seconds per wall second, from PX4's own clock on its telemetry) of each window,
+the CPU each process used per 4 ms step (user + system, all threads; PX4 runs its modules on
+several threads, so its CPU per step can exceed its wall time per step) and the load average;
+for the windseek runs also windseek's own split of the lockstep wall time per step (its step and
+send vs. waiting for PX4's answer, from ``--exit-summary``, over the whole lockstep run: boot,
+take-off, hover). At the end: per variant the median speed over all windows with its range, and
+the ratio to SIH. The speeds depend on the machine's load (2 shared cores here); the CPU per step
+much less.
 
-Usage: ``WINDSEEK_PX4_BIN=.../bin/px4 python benchmarks/px4_lockstep.py [--seconds 30]``.
+Usage: ``WINDSEEK_PX4_BIN=.../bin/px4 python benchmarks/px4_lockstep.py [--seconds 10] [--windows 3]
+[--rounds 1] [--windseek-repo PATH ...] [--no-sih]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -42,10 +52,11 @@ STEP_S = 0.004
 HOME_ALT_M = 488.0
 
 
-def cpu_s(pid: int) -> float:
-    """User + system CPU seconds of a process (all threads)."""
+def cpu_s(pid: int) -> tuple[float, float]:
+    """User and system CPU seconds of a process (all threads)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    tck = os.sysconf("SC_CLK_TCK")
+    return int(fields[11]) / tck, int(fields[12]) / tck
 
 
 class _Telemetry:
@@ -87,9 +98,18 @@ class _Telemetry:
         self.m.close()
 
 
-def fly_and_measure(api_port: int, seconds: float, pids: list[int]) -> dict[str, Any]:
+def _window(tel: _Telemetry, seconds: float, pids: list[int]) -> dict[str, Any]:
+    t0, c0, w0, load0 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic(), os.getloadavg()[0]
+    time.sleep(seconds)
+    t1, c1, w1 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic()
+    steps = max(1.0, (t1 - t0) / STEP_S)
+    cpu = [(1e6 * (b[0] - a[0]) / steps, 1e6 * (b[1] - a[1]) / steps) for a, b in zip(c0, c1, strict=True)]
+    return {"speed": (t1 - t0) / (w1 - w0), "cpu_us_per_step": cpu, "load": (load0 + os.getloadavg()[0]) / 2}
+
+
+def fly_and_measure(api_port: int, seconds: float, windows: int, pids: list[int]) -> list[dict[str, Any]]:
     """Arm and take off to 10 m (retried: PX4's preflight checks may need a while), wait for the hover,
-    then measure over ``seconds`` wall seconds."""
+    then measure ``windows`` windows of ``seconds`` wall seconds."""
     tel = _Telemetry(api_port)
     try:
         end = time.monotonic() + 240.0
@@ -103,65 +123,95 @@ def fly_and_measure(api_port: int, seconds: float, pids: list[int]) -> dict[str,
                 sent = time.monotonic()
             time.sleep(0.2)
         time.sleep(3.0)  # settle in hover
-        t0, c0, w0, load0 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic(), os.getloadavg()[0]
-        time.sleep(seconds)
-        t1, c1, w1 = tel.t_px4, [cpu_s(p) for p in pids], time.monotonic()
+        return [_window(tel, seconds, pids) for _ in range(windows)]
     finally:
         tel.close()
-    steps = max(1.0, (t1 - t0) / STEP_S)
-    return {"speed": (t1 - t0) / (w1 - w0), "sim_s": t1 - t0, "wall_s": w1 - w0,
-            "cpu_us_per_step": [1e6 * (b - a) / steps for a, b in zip(c0, c1, strict=True)],
-            "load": (load0 + os.getloadavg()[0]) / 2}  # fmt: skip
 
 
-def run_windseek(binary: Path, seconds: float, tmp: Path) -> dict[str, Any]:
+def run_windseek(binary: Path, repo: Path, seconds: float, windows: int, tmp: Path) -> dict[str, Any]:
     n = free_instance()
     p = ports(n)
-    log = open(tmp / "windseek.log", "wb")  # noqa: SIM115 - closed below
+    tag = f"{repo.name}-{n}-{time.monotonic_ns()}"
+    summary = tmp / f"windseek-{tag}.json"
+    log = open(tmp / f"windseek-{tag}.log", "wb")  # noqa: SIM115 - closed below
     ws = subprocess.Popen([sys.executable, "-m", "windseek.cli", "sitl", "open-field", "--px4", "--px4-port",
-                           str(p["sim"]), "--px4-free"], cwd=REPO, stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
-    px4 = Px4Sitl(binary, n, tmp / "px4-hil", tmp / "px4-hil.log", speed=20.0).start()
+                           str(p["sim"]), "--px4-free", "--exit-summary", str(summary)], cwd=repo, stdout=log,
+                          stderr=subprocess.STDOUT)  # fmt: skip
+    px4 = Px4Sitl(binary, n, tmp / f"px4-{tag}", tmp / f"px4-{tag}.log", speed=20.0).start()
     try:
         assert px4.proc is not None
-        return fly_and_measure(p["api"], seconds, [ws.pid, px4.proc.pid])
+        wins = fly_and_measure(p["api"], seconds, windows, [ws.pid, px4.proc.pid])
     finally:
         ws.send_signal(signal.SIGTERM)
         ws.wait(20)
         px4.stop()
         log.close()
+    s = json.loads(summary.read_text()) if summary.exists() else {}
+    return {"windows": wins, "split": [s.get("lockstep_us_per_step_windseek"), s.get("lockstep_us_per_step_px4")]}
 
 
-def run_sih(binary: Path, seconds: float, tmp: Path) -> dict[str, Any]:
+def run_sih(binary: Path, seconds: float, windows: int, tmp: Path) -> dict[str, Any]:
     n = free_instance()
     timeouts = {k: v for k, v in px4_env(20.0).items() if k.endswith("_LOSS_T")}
-    px4 = Px4Sitl(binary, n, tmp / "px4-sih", tmp / "px4-sih.log", sih=True,
+    px4 = Px4Sitl(binary, n, tmp / f"px4-sih-{n}", tmp / f"px4-sih-{n}.log", sih=True,
                   extra_env={"PX4_SIM_SPEED_FACTOR": "1000", **timeouts}).start()  # fmt: skip
     try:
         assert px4.proc is not None
-        return fly_and_measure(ports(n)["api"], seconds, [px4.proc.pid])
+        return {"windows": fly_and_measure(ports(n)["api"], seconds, windows, [px4.proc.pid])}
     finally:
         px4.stop()
 
 
+def _cpu(c: tuple[float, float]) -> str:
+    return f"{c[0] + c[1]:.0f} us (user {c[0]:.0f} + sys {c[1]:.0f})"
+
+
+def _report(label: str, r: dict[str, Any]) -> None:
+    speeds = " ".join(f"{w['speed']:.2f}x" for w in r["windows"])
+    cpus = [w["cpu_us_per_step"] for w in r["windows"]]
+    mean = [(statistics.fmean(c[i][0] for c in cpus), statistics.fmean(c[i][1] for c in cpus))
+            for i in range(len(cpus[0]))]  # fmt: skip
+    names = ["windseek", "PX4"] if len(mean) == 2 else ["PX4"]
+    cpu = "; ".join(f"{n} {_cpu(c)}" for n, c in zip(names, mean, strict=True))
+    load = statistics.fmean(w["load"] for w in r["windows"])
+    line = f"{label}: {speeds} real time; CPU per 4 ms step: {cpu}; load {load:.1f}"
+    if r.get("split") and r["split"][0] is not None:
+        line += f"; lockstep wall per step: windseek {r['split'][0]:.0f} us, waiting for PX4 {r['split'][1]:.0f} us"
+    print(line, flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seconds", type=float, default=30.0, help="wall seconds measured in hover (default 30)")
+    ap.add_argument("--seconds", type=float, default=10.0, help="wall seconds per measurement window (default 10)")
+    ap.add_argument("--windows", type=int, default=3, help="measurement windows per run (default 3)")
+    ap.add_argument("--rounds", type=int, default=1, help="repeat every variant this many times, interleaved")
+    ap.add_argument("--windseek-repo", action="append", type=Path, metavar="PATH",
+                    help="a windseek checkout whose `windseek sitl` to run (repeatable; default: this one)")
+    ap.add_argument("--no-sih", action="store_true", help="skip the PX4 SIH peer")
     args = ap.parse_args()
     binary = px4_binary()
     if binary is None:
         print("set WINDSEEK_PX4_BIN to a PX4 SITL binary (build/px4_sitl_*/bin/px4)", file=sys.stderr)
         return 2
+    repos = [p.resolve() for p in (args.windseek_repo or [REPO])]
     tmp = Path(tempfile.mkdtemp(prefix="px4_lockstep_"))
-    hil = run_windseek(binary, args.seconds, tmp)
-    cw, cp = hil["cpu_us_per_step"]
-    print(f"PX4 + windseek (lockstep over TCP): {hil['speed']:.2f}x real time ({hil['sim_s']:.1f} sim s in "
-          f"{hil['wall_s']:.1f} s); CPU per 4 ms step: windseek {cw:.0f} us, PX4 {cp:.0f} us (all its threads); "
-          f"load {hil['load']:.1f}")  # fmt: skip
-    sih = run_sih(binary, args.seconds, tmp)
-    (cs,) = sih["cpu_us_per_step"]
-    print(f"PX4 SIH (peer, PX4's own physics): {sih['speed']:.2f}x real time; CPU per 4 ms step: PX4 {cs:.0f} us "
-          f"(all its threads); load {sih['load']:.1f}")  # fmt: skip
-    print(f"windseek-in-the-loop / SIH speed: {hil['speed'] / sih['speed']:.2f}; logs in {tmp}")
+    speeds: dict[str, list[float]] = {}
+    for k in range(args.rounds):
+        for repo in repos:
+            label = f"PX4 + windseek {repo} (lockstep over TCP), round {k + 1}"
+            r = run_windseek(binary, repo, args.seconds, args.windows, tmp)
+            _report(label, r)
+            speeds.setdefault(f"PX4 + windseek {repo}", []).extend(w["speed"] for w in r["windows"])
+        if not args.no_sih:
+            r = run_sih(binary, args.seconds, args.windows, tmp)
+            _report(f"PX4 SIH (peer, PX4's own physics), round {k + 1}", r)
+            speeds.setdefault("PX4 SIH", []).extend(w["speed"] for w in r["windows"])
+    sih = statistics.median(speeds["PX4 SIH"]) if "PX4 SIH" in speeds else None
+    for name, v in speeds.items():
+        med = statistics.median(v)
+        ratio = f"; / SIH {med / sih:.2f}" if sih and name != "PX4 SIH" else ""
+        print(f"{name}: median {med:.2f}x real time (range {min(v):.2f}-{max(v):.2f}, {len(v)} windows){ratio}")
+    print(f"logs in {tmp}")
     return 0
 
 

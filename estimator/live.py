@@ -29,7 +29,12 @@ only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to
   and the clock bookkeeping (``clock_resets``, ``restarts``); the chosen inputs stay.
 - **Model.** The force model is the vehicle file's. When the autopilot's HEARTBEAT type is not
   a quadrotor, or the user says the airframe differs (``airframe``), :attr:`model_note` says that
-  the wind is biased by the model mismatch.
+  the wind is biased by the model mismatch. In steady flight the rotor speeds must produce the
+  measured specific force through the model (``thrust_check``); when they do not (PX4 SIH,
+  another airframe), that is said once, :attr:`model_note` says it, and the wind is **withheld**:
+  :meth:`LiveCore.output` returns None from then on (so nothing publishes WIND_COV and a mission
+  stops on an estimator fault). A biased wind published with a large covariance would still be
+  plotted and used by consumers that ignore the covariance, as most do.
 
 Times are the autopilot's boot clock, s; wind = air-mass velocity NED, m/s; covariance (m/s)^2.
 """
@@ -49,6 +54,7 @@ from estimator.ground_gate import GroundGate, withheld
 from estimator.live_select import InputSelection
 from estimator.motor_output import SITL_ORDER, OutputMap
 from estimator.rpm_free import MotorCommandModel
+from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR, ThrustCheck
 from estimator.ukf import WindEstimator
 from vehicle.params import VehicleParams
 
@@ -124,6 +130,7 @@ class LiveCore:
         self.landed_state: int | None = None
         self.restarts = 0
         self.model_note: str | None = None
+        self.thrust = ThrustCheck(cfg.vehicle)
         if cfg.airframe:
             self.model_note = self._mismatch(f"the vehicle is {cfg.airframe}")
         self.t = math.nan  # newest autopilot time, s
@@ -148,6 +155,7 @@ class LiveCore:
         self._esc_failed = np.zeros(4, dtype=bool)
         self._esc_t = -math.inf
         self._cmd: np.ndarray | None = None
+        self._w_now: np.ndarray | None = None  # the rotor speeds in force (for the thrust check)
         v = self.config.vehicle
         self._motor = MotorCommandModel(v.motor_time_constant_s, v.rotor_speed_max_rad_s)
 
@@ -171,9 +179,10 @@ class LiveCore:
         return self.config.ground_gate and withheld(self.landed_state)
 
     def output(self) -> LiveOutput | None:
-        """The current filter's estimate, or None when it has not estimated anything yet."""
+        """The current filter's estimate, or None when it has not estimated anything yet or the wind is
+        withheld (the vehicle is not the model's: see the module docstring)."""
         e = self.est
-        if e.t is None or e.accepted["imu"] == 0:
+        if self.thrust.mismatch is not None or e.t is None or e.accepted["imu"] == 0:
             return None
         return LiveOutput(float(e.t), e.wind_ned, e.wind_cov)
 
@@ -181,6 +190,8 @@ class LiveCore:
         """What the estimator is doing, in one line (without the estimate itself)."""
         if self.target is None:
             return "waiting for an autopilot HEARTBEAT"
+        if self.thrust.mismatch is not None:
+            return f"wind withheld: not {self.config.vehicle.name} (thrust ratio {self.thrust.ratio:.2f})"
         if not self.select.selected:
             return f"listening for inputs ({self.select.window_s:g} s of autopilot time)"
         if self.paused():
@@ -367,8 +378,13 @@ class LiveCore:
         if self._cmd is not None:
             w = self._motor.update(t, self._cmd)  # the motor lag, advanced to this sample
             if w is not None:
+                self._w_now = w
                 self.est.set_rotor_speeds(t, w)
         self.est.imu(t, acc, gyr)
+        if self.thrust.sample(t, acc, gyr, self._w_now, self.landed_state == MAV_LANDED_STATE_IN_AIR):
+            line = self.thrust.mismatch
+            self.model_note = line if self.model_note is None else f"{self.model_note}; {line}"
+            self.note(str(line))
 
     def _esc_speeds(self, index: int, speeds: list[float], t: float) -> None:
         order = self.config.esc_order
@@ -382,7 +398,8 @@ class LiveCore:
         if not self._esc_seen.all() or self._esc_failed.any() or not t > self._esc_t:
             return
         self._esc_t = t
-        self.est.set_rotor_speeds(t, self._esc.copy())
+        self._w_now = self._esc.copy()
+        self.est.set_rotor_speeds(t, self._w_now)
 
     def _release_velocities(self) -> None:
         pend = self._pending
@@ -408,6 +425,8 @@ class LiveCore:
             "inputs": dict(self.select.chosen),
             "inputs_line": self.select.inputs_line() if self.select.selected else self.status_line(),
             "model_note": self.model_note,
+            "wind_withheld": self.thrust.mismatch is not None,
+            "thrust_ratio": None if self.thrust.ratio is None else round(self.thrust.ratio, 3),
             "accepted": dict(e.accepted),
             "rejected": dict(e.rejected),
             "counters": dict(self.counters),

@@ -53,6 +53,7 @@ class Snapshot:
     status: str = "not started"
     inputs_line: str | None = None
     model_note: str | None = None
+    withheld: str | None = None  # why the wind is withheld (the vehicle is not the model's), else None
     restarts: int = 0
     counters: dict[str, int] = field(default_factory=dict)  # core and queue counters
     accepted: dict[str, int] = field(default_factory=dict)
@@ -218,6 +219,7 @@ class EstimatorWorker:
             status=core.status_line(),
             inputs_line=core.select.inputs_line() if core.select.selected else None,
             model_note=core.model_note,
+            withheld=core.thrust.mismatch,
             restarts=core.restarts,
             counters={**dict(core.counters), **counts},
             accepted=dict(e.accepted),

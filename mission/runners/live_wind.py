@@ -87,6 +87,8 @@ class EstimatedLiveWind:
 
     def fault(self, t: float) -> Abort | None:
         snap = self.worker.snapshot()
+        if snap.withheld is not None:  # the vehicle is not the model's: no wind, rather than a wrong one
+            return Abort("estimator-fault", snap.withheld)
         if not snap.ready:
             return None
         return self.watch.check(t, snap.wind_ned, snap.cov_ned, dict(snap.rejected), snap.accepted.get("imu", 0))

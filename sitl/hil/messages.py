@@ -26,7 +26,7 @@ Times: the HIL clock is the simulation time, ``time_usec = round(t * 1e6)`` (:fu
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -51,8 +51,39 @@ def _i16(v: float) -> int:
     return int(max(-32768, min(32767, round(v))))
 
 
+class HilSensor(NamedTuple):
+    """HIL_SENSOR as a plain tuple in wire order (the one message of every lockstep step: building a
+    pymavlink object for it costs more than packing it). Field names and units are pymavlink's;
+    ``id`` is the sensor instance (0: the lockstep IMU). :class:`sitl.hil.frames.FrameEncoder` packs it."""
+
+    time_usec: int
+    xacc: float
+    yacc: float
+    zacc: float
+    xgyro: float
+    ygyro: float
+    zgyro: float
+    xmag: float
+    ymag: float
+    zmag: float
+    abs_pressure: float
+    diff_pressure: float
+    pressure_alt: float
+    temperature: float
+    fields_updated: int
+    id: int
+
+    def get_type(self) -> str:
+        return "HIL_SENSOR"
+
+
+# How HilSensor goes on the wire (read by FrameEncoder): message id, CRC extra, payload struct (pymavlink's).
+setattr(HilSensor, "WIRE", (mavlink.MAVLINK_MSG_ID_HIL_SENSOR, mavlink.MAVLink_hil_sensor_message.crc_extra,  # noqa: B010
+                            mavlink.MAVLink_hil_sensor_message.unpacker))  # fmt: skip
+
+
 def hil_sensor(imu: tuple[float, np.ndarray, np.ndarray], mag: MagSample | None, baro: BaroSample | None,
-               mag_new: bool, baro_new: bool, sensor_id: int = 0) -> Any:  # fmt: skip
+               mag_new: bool, baro_new: bool, sensor_id: int = 0) -> HilSensor:  # fmt: skip
     """One HIL_SENSOR from an IMU sample ``(t, specific force FRD, rates FRD)`` and the latest
     magnetometer / barometer samples (their bits set only when ``*_new``)."""
     t, acc, gyr = imu
@@ -60,17 +91,16 @@ def hil_sensor(imu: tuple[float, np.ndarray, np.ndarray], mag: MagSample | None,
     m = (0.0, 0.0, 0.0)
     pres = palt = temp = 0.0
     if mag is not None:
-        m = (float(mag.field_gauss[0]), float(mag.field_gauss[1]), float(mag.field_gauss[2]))
+        m = tuple(mag.field_gauss.tolist())
         if mag_new:
             updated |= HIL_MAG
     if baro is not None:
         pres, palt, temp = baro.pressure_pa / 100.0, baro.altitude_m, baro.temperature_c
         if baro_new:
             updated |= HIL_BARO
-    return mavlink.MAVLink_hil_sensor_message(
-        hil_time_us(t), float(acc[0]), float(acc[1]), float(acc[2]), float(gyr[0]), float(gyr[1]), float(gyr[2]),
-        *m, float(pres), 0.0, float(palt), float(temp), updated, sensor_id,
-    )  # fmt: skip
+    a, g = acc.tolist(), gyr.tolist()
+    return HilSensor(hil_time_us(t), a[0], a[1], a[2], g[0], g[1], g[2], *m, float(pres), 0.0, float(palt),
+                     float(temp), updated, sensor_id)  # fmt: skip
 
 
 def hil_gps(g: GnssSample, cfg: GnssConfig, unix0_us: int) -> Any:

@@ -32,6 +32,7 @@ import socket
 from collections import Counter
 from typing import Any
 
+from sitl.hil.frames import FrameEncoder
 from sitl.hil.messages import heartbeat_peripheral
 from wire.dialect import mavlink
 
@@ -50,7 +51,7 @@ class UdpPeripheral:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1" if self.target[0].startswith("127.") else "0.0.0.0", 0))
         self.sock.setblocking(False)
-        self.encoder = mavlink.MAVLink(None, system_id, PERIPHERAL_COMPONENT)
+        self.encoder = FrameEncoder(system_id, PERIPHERAL_COMPONENT)
         self._parser = mavlink.MAVLink(None, 0, 0)
         self._parser.robust_parsing = True
         self.counters: Counter[str] = Counter()
@@ -69,11 +70,10 @@ class UdpPeripheral:
         """One datagram per message batch (split under 1400 bytes); send errors are counted."""
         if not msgs:
             return
-        enc = self.encoder
+        enc = self.encoder.encode
         chunk = b""
         for m in msgs:
-            frame = m.pack(enc)
-            enc.seq = (enc.seq + 1) % 256
+            frame = enc(m)
             if len(chunk) + len(frame) > 1400:
                 self._sendto(chunk)
                 chunk = b""
