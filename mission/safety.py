@@ -138,7 +138,7 @@ class Supervisor:
             pos, vel, hit = self.guard.apply(pos, vel, np.asarray(current, float), current_vel)
         if pos is not None:
             p = np.clip(np.asarray(pos, float), self.sp_lo, self.sp_hi)
-            hit = bool(np.any(p != pos))
+            hit = hit or bool(np.any(p != pos))
             pos = p
         if vel is not None:
             v = np.asarray(vel, float).copy()
