@@ -11,8 +11,8 @@ courtyard closed by buildings is unreachable from outside and a goal in it is re
 nearest reachable point.
 
 Buildings count at an altitude when the vehicle there is below their roof plus the clearance;
-one graph is built per set of blocking buildings and cached. Plain deterministic code without I/O (shapely for the geometry). Units m, frame
-local NED (north, east); altitudes above home.
+one graph is built per set of blocking buildings and cached. Plain deterministic code without
+I/O (shapely for the geometry). Units m, frame local NED (north, east); altitudes above home.
 """
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from shapely import Point, Polygon, prepare
+from shapely.geometry.base import BaseGeometry
 from shapely.ops import nearest_points, unary_union
 
 from mission.obstacles import Obstacles
@@ -76,7 +77,7 @@ class BuildingGuard:
         self.obstacles = obstacles
         self.home_down = float(home_down_m)
         self.router = Router(obstacles, obstacles.margin_m + self.cfg.plan_extra_m)
-        self._walls: dict[tuple[int, ...], object] = {}
+        self._walls: dict[tuple[int, ...], BaseGeometry | None] = {}
         self._shapes = [Polygon(b.footprint) for b in obstacles.buildings]
         self.goal: np.ndarray | None = None  # the detour goal (north/east m), None: no detour
         self._point: np.ndarray | None = None  # the position target the detour was planned for
@@ -137,14 +138,14 @@ class BuildingGuard:
         if self.goal is None:
             if target is None:
                 goal = self.router.beyond(cur, d, alt)
-                # The ray itself is clear but the carrot is not (it lies off the velocity): go to the carrot's free side.
+                # The ray is clear but the carrot is not (it lies off the velocity): to the carrot's free side.
                 self.goal = goal if goal is not None else self.router.nearest_free(cur + self.cfg.carrot_m * d, alt)
             else:
                 self.goal = self.router.nearest_free(target, alt)
             self._point = None if target is None else target.copy()
             self.detours += 1
 
-    def _wall(self, alt: float) -> object:
+    def _wall(self, alt: float) -> BaseGeometry | None:
         """The union of the footprints that block at ``alt`` (prepared), or None."""
         key = tuple(i for i, b in enumerate(self.obstacles.buildings) if alt < b.height_m + self.router.clearance_m)
         if key not in self._walls:
@@ -161,7 +162,7 @@ class BuildingGuard:
         if vel is None or wall is None:
             return pos, vel, False
         here = Point(float(cur[0]), float(cur[1]))
-        dist = float(wall.distance(here))  # type: ignore[attr-defined]
+        dist = float(wall.distance(here))
         if dist >= self.cfg.brake_zone_m or dist <= 0.0:
             return pos, vel, False
         q = nearest_points(wall, here)[0]

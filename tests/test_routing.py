@@ -17,7 +17,8 @@ from sitl.scenario import load_scenario
 
 
 def box(n: float, e: float, half_n: float, half_e: float, height: float = 15.0, name: str = "") -> Building:
-    fp = np.array([[n - half_n, e - half_e], [n + half_n, e - half_e], [n + half_n, e + half_e], [n - half_n, e + half_e]])
+    fp = np.array([[n - half_n, e - half_e], [n + half_n, e - half_e], [n + half_n, e + half_e],
+                   [n - half_n, e + half_e]])
     return Building(fp, height, name)
 
 
@@ -74,7 +75,8 @@ def test_a_goal_inside_a_building_is_replaced_by_the_nearest_reachable_point() -
 
 def test_a_closed_courtyard_is_not_entered_and_its_goal_moves_to_the_nearest_point_outside() -> None:
     # Four blocks in a ring with 4 m gaps: inflated by 3 m they merge, the courtyard is closed.
-    ring = [box(0.0, 15.0, 15.0, 2.5), box(0.0, -15.0, 15.0, 2.5), box(15.0, 0.0, 2.5, 10.5), box(-15.0, 0.0, 2.5, 10.5)]
+    ring = [box(0.0, 15.0, 15.0, 2.5), box(0.0, -15.0, 15.0, 2.5),
+            box(15.0, 0.0, 2.5, 10.5), box(-15.0, 0.0, 2.5, 10.5)]
     r = Router(Obstacles(ring), clearance_m=3.0)
     centre = np.array([0.0, 0.0])
     assert r.free_point(centre, 3.0)  # 10 m from every wall: free, but unreachable
