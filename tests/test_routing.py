@@ -162,3 +162,17 @@ def test_the_supervisor_never_sends_a_setpoint_whose_path_enters_a_building() ->
         pos, _ = sup.clamp(sp, rng.normal(0.0, 2.0, 3) * [1, 1, 0], cur, np.zeros(3))
         assert pos is not None
         assert Polygon(b[0].footprint).distance(LineString([cur[:2], pos[:2]])) >= 3.0 - 1e-6
+
+
+def test_paper_s4_street_puts_the_source_in_the_street_between_two_blocks_reachable_along_it() -> None:
+    sc, base = load_scenario("paper-s4-street"), load_scenario("paper-s4")
+    assert sc.urban is not None and sc.plume is not None and base.urban is not None
+    assert sc.urban.buildings == base.urban.buildings and sc.wind == base.wind  # only the source moved
+    obs = Obstacles.from_buildings(sc.urban.buildings)
+    src = np.asarray(sc.plume.plume.sources[0].position_ned[:2], float)
+    gaps = {b.name: Polygon(b.footprint).distance(Point(*src)) for b in obs.buildings}
+    assert gaps["block-5"] == pytest.approx(10.0, abs=0.05) and gaps["block-6"] == pytest.approx(10.0, abs=0.05)
+    assert min(gaps.values()) == pytest.approx(10.0, abs=0.05)
+    start = np.asarray(sc.start.position_ned[:2], float)
+    route = Router(obs, clearance_m=4.0).route(start, src, 3.0)
+    assert not route.goal_moved and clearance_of(route.waypoints, obs.buildings) >= 4.0 - 1e-3
