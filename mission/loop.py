@@ -296,7 +296,7 @@ class MissionLoop:
         pos, vel = sp.position_ned, sp.velocity_ned
         if pos is None and vel is None:
             pos = None if st.pos is None else st.pos.copy()
-        pos, vel = sup.clamp(pos, vel, st.pos)
+        pos, vel = sup.clamp(pos, vel, st.pos, st.vel)
         self.result.clamped_setpoints = sup.clamped
         self.v.send_setpoint(pos, vel, sp.yaw_rad)
         self.result.setpoints += 1
@@ -316,7 +316,7 @@ class MissionLoop:
         t_end = st.t + 20.0
         t_next = st.t
         while not over() and st.t < t_end:
-            pos, _ = self.sup.clamp(target, None, st.pos)
+            pos, _ = self.sup.clamp(target, None, st.pos, st.vel)
             self.v.send_setpoint(pos, None, None)
             t_next = max(t_next + 0.1, st.t)
             if await self.v.next_tick(t_next) == Wait.LINK_LOST:

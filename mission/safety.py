@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mission.obstacles import Obstacles
+from mission.safety_route import BuildingGuard, GuardConfig
 
 #: Abort causes, in the JSON summary's ``cause`` (plus "declared" for a normal end).
 CAUSES = (
@@ -101,13 +102,18 @@ class SafetyLimits:
 
 class Supervisor:
     """Applies :class:`SafetyLimits` around a home point (NED, m), and keeps setpoints out of the
-    buildings of ``obstacles`` (:mod:`mission.obstacles`), if any."""
+    buildings of ``obstacles`` (:mod:`mission.obstacles`), if any: a setpoint a building blocks is
+    flown around it (:class:`mission.safety_route.BuildingGuard`, tuned by ``guard``), and whatever
+    is sent is then clamped so that its straight path stays ``obstacles.margin_m`` clear."""
 
-    def __init__(self, limits: SafetyLimits, home_ned: np.ndarray, obstacles: Obstacles | None = None) -> None:
+    def __init__(self, limits: SafetyLimits, home_ned: np.ndarray, obstacles: Obstacles | None = None,
+                 guard: GuardConfig | None = None) -> None:  # fmt: skip
         limits.validate()
         self.limits = limits
         self.obstacles = obstacles
         self.home = np.asarray(home_ned, dtype=float).copy()
+        self.guard = BuildingGuard(obstacles, float(self.home[2]), guard) if obstacles is not None and len(obstacles) \
+            else None  # fmt: skip
         m = limits.margin_m
         lo = self.home + np.asarray(limits.box_min_ned, float)
         hi = self.home + np.asarray(limits.box_max_ned, float)
@@ -120,15 +126,19 @@ class Supervisor:
             raise ValueError("geofence box and altitude limits leave no altitude to fly at")
         self.clamped = 0  # setpoints that had to be clamped
 
-    def clamp(self, pos: np.ndarray | None, vel: np.ndarray | None,
-              current: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:  # fmt: skip
+    def clamp(self, pos: np.ndarray | None, vel: np.ndarray | None, current: np.ndarray | None = None,
+              current_vel: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:  # fmt: skip
         """A setpoint inside the limits: position clamped into the setpoint box; velocity
         components that point out of the box at its boundary zeroed (m, m/s, NED). For a
-        velocity-only setpoint the boundary test uses ``current`` (the vehicle position)."""
+        velocity-only setpoint the boundary test uses ``current`` (the vehicle position). Among
+        buildings (``current`` needed; ``current_vel``, the vehicle's velocity, lengthens the look
+        ahead) a blocked setpoint is replaced by a detour's, then clamped clear of them."""
         hit = False
+        if self.guard is not None and current is not None:
+            pos, vel, hit = self.guard.apply(pos, vel, np.asarray(current, float), current_vel)
         if pos is not None:
             p = np.clip(np.asarray(pos, float), self.sp_lo, self.sp_hi)
-            hit = bool(np.any(p != pos))
+            hit = hit or bool(np.any(p != pos))
             pos = p
         if vel is not None:
             v = np.asarray(vel, float).copy()

@@ -1,7 +1,7 @@
 """Buildings in a MAVSDK mission (issue 20.4): the runner places a scenario's buildings in the
 autopilot's local frame from HOME_POSITION, uploads them as geofence exclusion polygons (read back
-from the SITL's own fence) and its supervisor keeps every setpoint clear of them, against the real
-windseek SITL and MAVSDK over UDP.
+from the SITL's own fence) and its supervisor keeps every setpoint clear of them, flying the surge
+around the building, against the real windseek SITL and MAVSDK over UDP.
 
 The building stands on the surge path of ``open-field-low`` (start (0, 0), source 60 m north). Its
 scenario frame is deliberately not the SITL's: the site's origin is 100 m north of the SITL's
@@ -78,5 +78,11 @@ def test_mission_uploads_the_buildings_as_exclusions_and_never_enters_them() -> 
     inside = ((pts[:, 0] > 25.0) & (pts[:, 0] < 31.0) & (pts[:, 1] > -3.0) & (pts[:, 1] < 3.0))
     assert pts[:, 0].max() > 15.0  # it did fly toward the building
     assert not inside.any()
+    # ... and around it: the supervisor's detour took it past the far face (north 31 m), 4 m clear.
+    past = pts[pts[:, 0] > 31.0]
+    print(f"furthest north {pts[:, 0].max():.1f} m")
+    assert len(past) > 0
+    near = (pts[:, 0] > 21.0) & (pts[:, 0] < 35.0)
+    assert np.all(np.maximum(np.abs(pts[near, 1]) - 3.0, np.maximum(25.0 - pts[near, 0], pts[near, 0] - 31.0)) > 2.0)
     assert fence.breaches == 0
     assert res.landed and res.disarmed
