@@ -262,7 +262,8 @@ class MissionLoop:
         st, res = self.v.state, self.result
         assert st.obs_pos is not None
         obs = Observation(t=t, position_ned=st.obs_pos.copy(), velocity_ned=st.obs_vel.copy(), chem_mg_m3=st.chem,
-                          detected=st.chem > 0.0, chem_new=chem_new, wind=self._wind_info)  # fmt: skip
+                          detected=st.chem > 0.0, chem_new=chem_new, wind=self._wind_info,
+                          chem_t=st.chem_t)  # fmt: skip
         sp = self.strategy.update(obs)
         res.ticks += 1
         if sp.declared_source_ned is not None and res.declared_ned is None:

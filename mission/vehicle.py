@@ -32,8 +32,8 @@ class VehicleState:
     obs_pos / obs_vel: what the strategy observes (the autopilot's estimate over MAVLink; the raw
         GNSS fix in the lockstep adapter, with its noise and latency), m / m/s NED.
     yaw: heading, rad. armed, mode (PX4 mode name), landed (MAV_LANDED_STATE), crashed.
-    chem / chem_seq: the latest chemical reading (mg/m^3, 0 below the detection limit) and how
-        many readings have arrived.
+    chem / chem_seq / chem_t: the latest chemical reading (mg/m^3, 0 below the detection limit), how
+        many readings have arrived, and the vehicle time of the latest one, s (NaN: not stamped).
     heartbeat_seq: heartbeats received (a fresh one tells the state is current after a link loss).
     """
 
@@ -49,6 +49,7 @@ class VehicleState:
     crashed: bool = False
     chem: float = 0.0
     chem_seq: int = 0
+    chem_t: float = math.nan
     heartbeat_seq: int = 0
 
 

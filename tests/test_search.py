@@ -405,3 +405,28 @@ def test_estimated_wind_is_paused_on_the_ground_and_cold_starts_at_lift_off():
         sim.run_until(0.1 * k)
         ws.update(sim.drain())
     assert ws.restarts == 1 and ws.estimator is not est and 0.0 < ws.estimator.span_s < 10.0
+
+
+def test_a_late_reading_after_a_lost_one_is_not_a_new_hit():
+    """Over a lossy link a tick can pair an older reading with a newer time (the message in between
+    was lost). The sensor's decay is judged on the readings' own times: the decay tail after the
+    vehicle left the plume gives no hit, wherever the ticks fall. Judged on the tick times it would
+    look like a rise, a hit placed metres upwind of the plume (found at 30 % loss each way: a
+    candidate 4 m upwind of the source, verified nine times, never supported)."""
+    from mission.strategies.plume_memory import PlumeMemory
+
+    tau = SurgeCastParams().sensor_tau_s
+    reading_t = [0.0, 0.1, 0.2, 0.3, 0.4]  # 10 Hz readings of a pure decay from 20 mg/m^3
+    tick_t = [0.0, 0.1, 0.2, 0.4, 0.5]  # the reading of 0.3 s reached the tick of 0.4 s (0.3 s's message lost)
+
+    def hits(stamped: bool) -> int:
+        m = PlumeMemory(SurgeCastParams())
+        n = 0
+        for tr, tt in zip(reading_t, tick_t, strict=True):
+            c = 20.0 * math.exp(-tr / tau)
+            n += m.add(Observation(t=tt, position_ned=np.zeros(3), velocity_ned=np.zeros(3), chem_mg_m3=c,
+                                   detected=True, chem_new=True, chem_t=tr if stamped else math.nan))
+        return n
+
+    assert hits(stamped=True) == 1  # the first reading only
+    assert hits(stamped=False) == 2  # without the readings' times the late one looks like a rise

@@ -82,6 +82,7 @@ class LockstepVehicle:
         if chem:
             st.chem = float(chem[-1].value_mg_m3)
             st.chem_seq += len(chem)
+            st.chem_t = float(chem[-1].t)
         self._refresh()
         for hook in self.tick_hooks:
             hook(st.t)

@@ -238,6 +238,8 @@ class MavsdkVehicle:
         elif name == "NAMED_VALUE_FLOAT" and str(f.get("name", "")).rstrip("\x00") == "CHEM":
             st.chem = float(f["value"])
             st.chem_seq += 1
+            t = f.get("time_boot_ms", 0) * 1e-3
+            st.chem_t = t if t > 0.0 else math.nan  # the reading's own time (see Observation.chem_t)
         elif name == "HEARTBEAT":
             st.armed = bool(int(f["base_mode"]) & px4_modes.SAFETY_ARMED)
             mode = px4_modes.name(int(f["custom_mode"]))

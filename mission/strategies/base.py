@@ -74,6 +74,9 @@ class Observation:
     chem_new: a new chemical reading arrived since the previous tick (the sensor runs at its own
         rate; a stale reading must not be counted twice).
     wind: the wind information, or None in the ``none`` wind mode (pure chemotaxis).
+    chem_t: time of the latest reading, s, on the clock of ``t`` (NaN: take ``t``). A reading can be
+        older than the tick: over a lossy link the tick may pair an older reading with a newer time,
+        and a decaying sensor read at the wrong time looks like a rise (a false hit).
     """
 
     t: float
@@ -83,6 +86,7 @@ class Observation:
     detected: bool
     chem_new: bool = True
     wind: WindInfo | None = None
+    chem_t: float = math.nan
 
 
 @dataclass

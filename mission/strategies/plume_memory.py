@@ -57,11 +57,14 @@ class PlumeMemory:
         value = obs.chem_mg_m3 if obs.detected else 0.0
         prev, t_prev = self._prev_value, self._t_sample
         self._prev_value = value
-        decayed = 0.0 if math.isnan(t_prev) else prev * math.exp(-(obs.t - t_prev) / self.p.sensor_tau_s)
+        # The decay runs on the readings' own times: a tick can carry a reading older than itself
+        # (the one after a lost message), and its decay measured to the tick would look like a rise.
+        tc = obs.t if math.isnan(obs.chem_t) else obs.chem_t
+        decayed = 0.0 if math.isnan(t_prev) else prev * math.exp(-(tc - t_prev) / self.p.sensor_tau_s)
         hit = obs.detected and value > decayed + 3.0 * self.p.sensor_noise_mg_m3
         pos = obs.position_ned[0:2] - self.p.sensor_lag_s * obs.velocity_ned[0:2]
-        dt = 0.1 if math.isnan(self._t_sample) else max(obs.t - self._t_sample, 0.0)
-        self._t_sample = obs.t
+        dt = 0.1 if math.isnan(self._t_sample) else max(tc - self._t_sample, 0.0)
+        self._t_sample = tc
         a = -math.expm1(-dt / HIT_TAU_S)
         self.hit_rate += a * ((1.0 if hit else 0.0) - self.hit_rate)
         self.samples.append((obs.t, pos, value))
