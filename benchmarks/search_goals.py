@@ -77,6 +77,24 @@ def table(cells: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def write_table(text: str, cached: list[dict], begin: str, end: str, cache_name: str, no_write: bool) -> str:
+    """The table block (the table and the command line of every cached cell) written into
+    benchmarks/README.md between ``begin`` and ``end`` (appended without them) unless ``no_write``;
+    returns the table."""
+    commands = sorted({c["command"] for c in cached})
+    note = f"Produced by (every cell is kept in `benchmarks/{cache_name}`):"
+    block = "\n".join([begin, "", text, "", note, "", *[f"    {c}" for c in commands], "", end])
+    if not no_write:
+        readme = Path(__file__).with_name("README.md")
+        body = readme.read_text()
+        if begin in body and end in body:
+            body = body[:body.index(begin)] + block + body[body.index(end) + len(end):]
+        else:
+            body = body.rstrip("\n") + "\n\n" + block + "\n"
+        readme.write_text(body)
+    return text
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", default="", help="comma-separated strategy:scenario:wind")
@@ -102,20 +120,7 @@ def main() -> None:
         cached.append(s)
         cache.write_text(json.dumps(cached, indent=1, default=str))
         print(table([s]).splitlines()[-1], flush=True)
-    text = table(cached)
-    commands = sorted({c["command"] for c in cached})
-    note = "Produced by (every cell is kept in `benchmarks/search_goals_cells.json`):"
-    block = "\n".join([BEGIN, "", text, "", note, "", *[f"    {c}" for c in commands], "", END])
-    print(text)
-    if not args.no_write:
-        readme = Path(__file__).with_name("README.md")
-        body = readme.read_text()
-        if BEGIN in body and END in body:
-            body = body[:body.index(BEGIN)] + block + body[body.index(END) + len(END):]
-        else:
-            body = body.rstrip("\n") + "\n\n" + block + "\n"
-        readme.write_text(body)
-
+    print(write_table(table(cached), cached, BEGIN, END, "search_goals_cells.json", args.no_write))
 
 if __name__ == "__main__":
     main()

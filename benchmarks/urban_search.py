@@ -30,23 +30,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from search_goals import wilson  # noqa: E402
+from search_goals import _f, _pct, wilson, write_table  # noqa: E402
 
 from mission.evaluate import run_batch, summarize  # noqa: E402
 from mission.runners.inprocess import TrialResult  # noqa: E402
 
 BEGIN, END = "<!-- urban_search:begin -->", "<!-- urban_search:end -->"
 STRATEGY_FILES = Path(__file__).resolve().parent.parent / "mission" / "strategy_files"
-
-
-def _f(v: float | None, nd: int = 2) -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "-"
-    return "inf" if v == math.inf else f"{v:.{nd}f}"
-
-
-def _pct(v: float) -> str:
-    return "-" if v != v else f"{100 * v:.0f}"
 
 
 def cell(results: list[TrialResult]) -> dict:
@@ -116,20 +106,7 @@ def main() -> None:
         cached.append(s)
         cache.write_text(json.dumps(cached, indent=1, default=str))
         print(table([s]).splitlines()[-1], flush=True)
-    text = table(cached)
-    commands = sorted({c["command"] for c in cached})
-    note = "Produced by (every cell is kept in `benchmarks/urban_search_cells.json`):"
-    block = "\n".join([BEGIN, "", text, "", note, "", *[f"    {c}" for c in commands], "", END])
-    print(text)
-    if not args.no_write:
-        readme = Path(__file__).with_name("README.md")
-        body = readme.read_text()
-        if BEGIN in body and END in body:
-            body = body[:body.index(BEGIN)] + block + body[body.index(END) + len(END):]
-        else:
-            body = body.rstrip("\n") + "\n\n" + block + "\n"
-        readme.write_text(body)
-
+    print(write_table(table(cached), cached, BEGIN, END, "urban_search_cells.json", args.no_write))
 
 if __name__ == "__main__":
     main()
