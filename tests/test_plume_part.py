@@ -15,7 +15,7 @@ import pytest
 from sitl.scenario import ScenarioError, builtin_scenarios, load_scenario, parse_scenario
 from sitl.simulation import Simulation
 from sitl.world.chem_sensor import ChemReading
-from sitl.world.plume import PuffPlume
+from sitl.world.plume import PuffPlume, puffs
 from sitl.world.plume.setup import parse_plume_table
 from windseek.cmd_sim import simulate
 
@@ -170,3 +170,24 @@ def test_puff_concentration_kernel_matches_the_closed_form_sum() -> None:
     assert ref.max() > 1.0  # the check covers points inside the plume
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
     assert plume.concentration(pts[4]) == pytest.approx(ref[4], rel=1e-12, abs=1e-12)
+
+
+def test_a_grid_culls_puffs_without_changing_a_single_bit() -> None:
+    """A grid of points (a recorded slice) first culls the puffs against its bounding box: every
+    value is bit for bit the one of the same point asked alone (no culling). The grid is a small
+    window inside the plume, so puffs just outside it still reach its edge points (a cull that
+    dropped them would change those values), and most puffs are far downwind of it."""
+    sim = Simulation(load_scenario("open-field"), seed=5, autostart_route=False)
+    sim.run_until(40.0)
+    plume = sim.plume
+    xs, ys = np.linspace(30.0, 40.0, 11), np.linspace(-1.0, 1.0, 5)
+    grid = np.array([[x, y, -2.0] for x in xs for y in ys])
+    assert len(grid) >= puffs.CULL_MIN_POINTS
+    lo, hi = grid[:, :2].min(axis=0), grid[:, :2].max(axis=0)
+    p = plume.puffs
+    outside = ((p[:, :2] < lo - 10.0 * np.sqrt(p[:, 3:4])) | (p[:, :2] > hi + 10.0 * np.sqrt(p[:, 3:4]))).any(axis=1)
+    assert outside.mean() > 0.3  # the cull has puffs to drop
+    got = plume.concentration(grid)
+    alone = np.array([plume.concentration(q) for q in grid])
+    assert got.max() > 1.0  # the grid crosses the plume
+    assert np.array_equal(got, alone)
