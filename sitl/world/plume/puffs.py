@@ -104,17 +104,17 @@ def _puff_concentration(pts: np.ndarray, pos: np.ndarray, r2: np.ndarray, mass: 
     for i in range(n):
         zq = -pts[i, 2]
         acc = 0.0
-        for j in used:
-            dx = pts[i, 0] - pos[j, 0]
-            dy = pts[i, 1] - pos[j, 1]
+        for q in used:
+            dx = pts[i, 0] - pos[q, 0]
+            dy = pts[i, 1] - pos[q, 1]
             dh2 = dx * dx + dy * dy
-            zp = abs(pos[j, 2])
-            e = dh2 * inv[j]
+            zp = abs(pos[q, 2])
+            e = dh2 * inv[q]
             if e < -40.0:  # saves the two exp calls (most puffs are far from a point)
                 continue
             dzm = zq - zp
             dzp = zq + zp
-            acc += norm[j] * (math.exp(e + dzm * dzm * inv[j]) + math.exp(e + dzp * dzp * inv[j]))
+            acc += norm[q] * (math.exp(e + dzm * dzm * inv[q]) + math.exp(e + dzp * dzp * inv[q]))
         out[i] = acc
     return out
 
