@@ -225,8 +225,12 @@ class SceneMixin(RecorderBase):
         (one row per hit, shown like the path: every row up to the time cursor)."""
         if self._last_pos is not None:
             p = self._last_pos
-            rgb = log_colormap(np.array([value_mg_m3]), *self.c_range_mg_m3)[0]
-            self._push_row("map/hits", rr.Points2D, self.t_latest, positions=(p[1], -p[0]), colors=rgb)
+            # The row keeps the concentration; the colours of a batch of hits are mapped when it is sent.
+            self._buffer("map/hits", rr.Points2D, convert={"colors": self._conc_colors})
+            self._push_row("map/hits", rr.Points2D, self.t_latest, positions=(p[1], -p[0]), colors=value_mg_m3)
+
+    def _conc_colors(self, c: np.ndarray) -> np.ndarray:
+        return log_colormap(c, *self.c_range_mg_m3)
 
     # ------------------------------------------------------------------ sources
     def true_sources(self, sources_ned: Sequence[VecLike] | np.ndarray) -> None:

@@ -32,15 +32,27 @@ class ColumnBuffer:
 
     ``width`` > 1 means every row holds that many instances (e.g. the lower and upper edge of a
     band); the columns are then partitioned so each row stays one batch of ``width`` values.
+    ``convert`` maps a field to a function applied to its whole column (a float array) when it is
+    sent: what a row stores (a concentration) becomes what is drawn (a colour) once per batch,
+    not once per row.
     """
 
-    __slots__ = ("archetype", "fields", "t", "width")
+    __slots__ = ("archetype", "convert", "fields", "t", "width")
 
-    def __init__(self, archetype: Any, width: int = 1) -> None:
+    def __init__(self, archetype: Any, width: int = 1,
+                 convert: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None) -> None:  # fmt: skip
         self.archetype = archetype
         self.width = width
+        self.convert = convert or {}
         self.t: list[float] = []
         self.fields: dict[str, list[Any]] = {}
+
+    def column(self, name: str) -> np.ndarray:
+        """A field's buffered values as the array to send (colours: 0-255, not 0-1)."""
+        fn = self.convert.get(name)
+        if fn is not None:
+            return fn(np.asarray(self.fields[name], dtype=float))
+        return np.asarray(self.fields[name], dtype=np.uint8 if name == "colors" else float)
 
     def clear(self) -> None:
         self.t.clear()
@@ -188,13 +200,21 @@ class RecorderBase:
         buf.t.append(t)
         buf.fields["scalars"].append(v)
 
+    def _buffer(self, entity: str, archetype: Any, width: int = 1,
+                convert: dict[str, Callable[[np.ndarray], np.ndarray]] | None = None) -> ColumnBuffer:  # fmt: skip
+        """The row buffer of ``entity``, made on first use (see :class:`ColumnBuffer`)."""
+        buf = self._series.get(entity)
+        if buf is None:
+            buf = self._series[entity] = ColumnBuffer(archetype, width, convert)
+        return buf
+
     def _push_row(self, entity: str, archetype: Any, t: float, width: int = 1, **fields: Any) -> None:
         """Buffer one temporal row of ``archetype`` (``width`` instances per row) for :meth:`flush_series`."""
         t = float(t)
         self._seen(t)
         buf = self._series.get(entity)
         if buf is None:
-            buf = self._series[entity] = ColumnBuffer(archetype, width)
+            buf = self._buffer(entity, archetype, width)
         buf.t.append(t)
         for name, value in fields.items():
             buf.fields.setdefault(name, []).append(value)
@@ -211,8 +231,7 @@ class RecorderBase:
             if not buf.t:
                 continue
             t = np.asarray(buf.t)
-            cols = {name: np.asarray(v, dtype=np.uint8 if name == "colors" else float)  # colours: 0-255, not 0-1
-                    for name, v in buf.fields.items()}  # fmt: skip
+            cols = {name: buf.column(name) for name in buf.fields}
             if buf.width == 1:
                 columns = buf.archetype.columns(**cols)
                 if buf.archetype is rr.Scalars:

@@ -50,9 +50,12 @@ class FlightTally:
 
     def wind(self, est_ned: VecLike, truth_ned: VecLike, height_m: float) -> None:
         """A wind estimate and the true wind at its time [m/s]; scored when ``height_m`` is airborne."""
-        e, w = np.asarray(est_ned, dtype=float), np.asarray(truth_ned, dtype=float)
-        if height_m > self.airborne_m and np.all(np.isfinite(e)) and np.all(np.isfinite(w)):
-            self._err2 += (e - w) ** 2
+        if height_m <= self.airborne_m:
+            return
+        d = [float(est_ned[k]) - float(truth_ned[k]) for k in range(3)]  # floats: ~10x cheaper than numpy here
+        if all(math.isfinite(v) for v in d):
+            for k in range(3):
+                self._err2[k] += d[k] * d[k]
             self.n_scored += 1
 
     def rmse(self) -> np.ndarray | None:

@@ -87,9 +87,8 @@ class TrialRecorder:
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
         self.rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
                                                   strategy=getattr(strategy, "name", None), **self.recorder_kw))
-        hook = record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"],
-                                 series_hz=self.rates["series_hz"], slice_hz=self.rates["slice_hz"])  # fmt: skip
-        sim.step_hooks[sim.step_hooks.index(hook)] = lambda s: self.meter(hook, s)
+        record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"], series_hz=self.rates["series_hz"],
+                          slice_hz=self.rates["slice_hz"], meter=self.meter)  # fmt: skip
         publish = vehicle.publish
 
         def record(pairs: list[tuple[str, str]]) -> None:
@@ -120,14 +119,15 @@ class TrialRecorder:
     def _tick(self, t: float) -> None:
         rec, sim = self.rec, self.sim
         assert rec is not None
-        pos = np.asarray(sim.position, dtype=float)
+        pos = sim.x[0:3]  # a view: the tally copies what it keeps
         ph = rec.phases
         self.tally.position(pos, ph.armed, ph.searching, ph.declared)
         wi = self.vehicle.wind_info
         if wi is not None and t - self._t_series >= self.series_dt - 1e-9:
             self._t_series = t
-            est = np.asarray(wi.wind_ned, dtype=float)
-            sigma = None if wi.cov_ned is None else np.sqrt(np.maximum(np.diag(wi.cov_ned), 0.0))
+            est = wi.wind_ned
+            cov = wi.cov_ned
+            sigma = None if cov is None else [math.sqrt(max(float(cov[k][k]), 0.0)) for k in range(3)]
             rec.wind(t, est_ned=est, sigma_ned=sigma)
             speed, from_deg = wind_speed_from_deg(est)
             filt = math.degrees(wi.upwind_rad) if math.isfinite(wi.upwind_rad) else None
