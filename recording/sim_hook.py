@@ -17,8 +17,9 @@ rounded to a whole number of mode ticks):
 and once, at attach time: the true sources, the scene (start and sources, the take-off altitude),
 the detection threshold and, in an urban scenario (``[urban]`` buildings), the buildings and the
 mean wind field at flight altitude and on the vertical plane along the wind through the source
-(:func:`record_urban`, :mod:`recording.urban_scene`). The plume hook is registered by ``Simulation.__init__`` before this
-one, so the chemical reading and plume state logged at a tick are those of that same tick.
+(:func:`record_urban`, :mod:`recording.urban_scene`). The plume hook is registered by
+``Simulation.__init__`` before this one, so the chemical reading and plume state logged at a tick
+are those of that same tick.
 
 Estimator and strategy data are logged by their runners through the recorder's methods
 (``wind(est_ned=...)``, ``wind_speed_dir``, ``strategy_state``, ``declare``, ``summary``), on the
@@ -79,6 +80,9 @@ class _Curtain:
         self.s = np.arange(-10.0, reach + 1e-9, resolution_m)
         self.z = -np.arange(0.0, max(3.0 * altitude_m, 12.0) + 1e-9, 0.5 * resolution_m)
         self.src_z = float(src[2])
+        # Buildings (an urban wind field's exact prisms): no plume drawn inside them.
+        self.inside: Callable[[np.ndarray], np.ndarray] | None = getattr(getattr(sim.wind, "field", None), "inside",
+                                                                          None)  # fmt: skip
 
     def points(self, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
         """Downwind unit vector (north, east) of the mean wind at the source now, and the (S*Z, 3) points."""
@@ -92,11 +96,15 @@ class _Curtain:
 
 def _section_plane(sim: Simulation, field: Any, res_m: float, altitude_m: float,
                    top_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Origin (the first source, else the start), downwind unit vector (north, east) of the upstream
-    wind, s [m] from 25 m upwind to 25 m past the start's along-wind distance, heights [m]."""
+    """Origin (the first source, else the start), downwind unit vector (north, east) of the mean wind
+    at the source (the plume's curtain's plane, :class:`_Curtain`; the upstream wind where it is
+    calm), s [m] from 25 m upwind to 25 m past the start's along-wind distance, heights [m]."""
     start = np.asarray(sim.scenario.start.position_ned, dtype=float)[:2]
-    origin = sim.chem.sources_ned[0][:2].copy() if sim.chem is not None else start
-    u = np.asarray(field.scene.wind.direction_ned, dtype=float)
+    src = sim.chem.sources_ned[0] if sim.chem is not None else np.array([*start, -altitude_m])
+    origin = np.array(src[:2], dtype=float)
+    w = np.asarray(sim.wind.mean(sim.t, np.asarray(src, dtype=float)), dtype=float)[:2]
+    up = np.asarray(field.scene.wind.direction_ned, dtype=float)
+    u = w / float(np.hypot(*w)) if float(np.hypot(*w)) > 1e-6 else up
     reach = max(float((start - origin) @ u), 0.0) + 25.0
     s = np.arange(-25.0, reach + 1e-9, res_m)
     h = np.arange(0.0, max(top_m, 3.0 * altitude_m, 12.0) + 1e-9, min(1.0, res_m))
@@ -229,6 +237,8 @@ def record_simulation(
                 if curtain is not None:
                     d, cpts = curtain.points(s)
                     cc = np.asarray(pl.concentration(cpts)).reshape(len(curtain.s), len(curtain.z))
+                    if curtain.inside is not None:
+                        cc = np.where(np.asarray(curtain.inside(cpts)).reshape(cc.shape), 0.0, cc)
                     recorder.plume_curtain(t, curtain.origin, d, curtain.s, curtain.z, cc)
             if n_puffs and k % n_puffs == 0 and s.chem is not None and (puffs := s.chem.puff_array()) is not None:
                 recorder.puffs(t, puffs)

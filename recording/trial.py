@@ -85,10 +85,10 @@ class TrialRecorder:
         self.sim, self.vehicle, self.strategy = sim, vehicle, strategy
         self.home = np.asarray(sim.position, dtype=float).copy()
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
-        self.rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
-                                                  strategy=getattr(strategy, "name", None), **self.recorder_kw))
+        self.rec = rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
+                                                        strategy=getattr(strategy, "name", None), **self.recorder_kw))
         alt = getattr(params, "altitude_m", None)  # the search altitude: the urban wind field's slice
-        hook = self.meter(lambda: record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"],
+        hook = self.meter(lambda: record_simulation(sim, rec, vehicle_hz=self.rates["vehicle_hz"],
                                                     series_hz=self.rates["series_hz"], slice_hz=self.rates["slice_hz"],
                                                     field_altitude_m=alt))  # fmt: skip
         sim.step_hooks[sim.step_hooks.index(hook)] = lambda s: self.meter(hook, s)

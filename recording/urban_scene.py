@@ -124,11 +124,13 @@ class UrbanSceneMixin(SceneMixin):
                                                                   fill_mode="MajorWireframe", radii=ui(0.75)))
         other = [(f, h) for (r, h, _), f in zip(boxes, fps, strict=True) if r is None]
         if other:  # any other footprint: its walls as a mesh (the roof's outline shows its shape)
-            verts, tris, strips = [], [], []
+            verts: list[np.ndarray] = []
+            tris: list[list[int]] = []
+            strips: list[np.ndarray] = []
             for f, h in other:
                 for i in range(len(f)):
                     a, b = f[i - 1], f[i]
-                    k = sum(len(v) for v in verts)
+                    k = 4 * len(verts)
                     verts.append(np.array([[a[0], a[1], 0.0], [b[0], b[1], 0.0], [b[0], b[1], -h], [a[0], a[1], -h]]))
                     tris += [[k, k + 1, k + 2], [k, k + 2, k + 3]]
                 strips.append(np.column_stack([np.vstack([f, f[:1]]), np.full(len(f) + 1, -h)]))
@@ -177,8 +179,8 @@ class UrbanSceneMixin(SceneMixin):
         ok = np.isfinite(speed)
         img[ok, :3] = speed_colormap(speed[ok], v_max)
         img[ok, 3] = WIND_MAP_ALPHA
-        self.log_static("map/wind_field/speed", rr.Transform3D(translation=[ys[0] - 0.5 * dy, -(xs[-1] + 0.5 * dx), 0.0],
-                                                               scale=[dy, dx, 1.0]))  # fmt: skip
+        corner = [ys[0] - 0.5 * dy, -(xs[-1] + 0.5 * dx), 0.0]  # the image's pixel (0, 0): the north-west cell
+        self.log_static("map/wind_field/speed", rr.Transform3D(translation=corner, scale=[dy, dx, 1.0]))
         self.log_static("map/wind_field/speed", rr.Image(img[::-1], opacity=0.99, draw_order=-20.0))
         sub = (slice(arrow_every // 2, None, arrow_every),) * 2
         n, e = np.meshgrid(xs, ys, indexing="ij")
@@ -193,7 +195,8 @@ class UrbanSceneMixin(SceneMixin):
         self.send_furniture(self.scene_bounds())
 
     def wind_field_section(self, origin_ne: np.ndarray, dir_ne: np.ndarray, s: np.ndarray, h: np.ndarray,
-                           along: np.ndarray, down: np.ndarray, arrow_every: tuple[int, int] = (3, 3)) -> None:  # fmt: skip
+                           along: np.ndarray, down: np.ndarray,
+                           arrow_every: tuple[int, int] = (3, 3)) -> None:  # fmt: skip
         """The mean wind on the vertical plane through ``origin_ne`` along the unit vector ``dir_ne``
         (north, east): ``along[i, j]`` and ``down[i, j]`` [m/s] are its components along ``dir_ne``
         and down at (``origin_ne + s[i] * dir_ne``, height ``h[j]`` [m] above the ground), NaN inside a
@@ -228,7 +231,9 @@ class UrbanSceneMixin(SceneMixin):
         ends = np.array([o + s[0] * u, o + s[-1] * u])
         self.log_static("map/wind_field/section", rr.LineStrips2D([to_map(ends)], colors=[C_FIELD_ARROW],
                                                                   radii=ui(0.8), draw_order=-6.0))  # fmt: skip
-        self.log_static("map/wind_field/section/label", rr.Points2D(to_map(ends[:1]), radii=ui(0.1),
+        # Labelled at its downwind end, beside the line (the upwind end is at the source and its label).
+        at = to_map(ends[1:] + np.array([[-u[1], u[0]]]) * 6.0)
+        self.log_static("map/wind_field/section/label", rr.Points2D(at, radii=ui(0.1),
                                                                     colors=[C_FIELD_ARROW], labels=["3D section"],
                                                                     draw_order=41.0))  # fmt: skip
 
@@ -246,7 +251,8 @@ class UrbanSceneMixin(SceneMixin):
         steps = 5
         v = np.linspace(v_max, 0.0, steps)  # top = fast
         rgba = np.concatenate([speed_colormap(v, v_max), np.full((steps, 1), 255, dtype=np.uint8)], axis=1)
-        self.log_static("map/wind_field/colorbar/image", rr.Transform3D(translation=[x_bar, y0, 0.0], scale=[h, h, 1.0]))
+        bar = rr.Transform3D(translation=[x_bar, y0, 0.0], scale=[h, h, 1.0])
+        self.log_static("map/wind_field/colorbar/image", bar)
         self.log_static("map/wind_field/colorbar/image", rr.Image(rgba.reshape(steps, 1, 4), draw_order=39.0))
         self._label("map/wind_field/colorbar/labels", [(x_bar - 0.6 * h, y0 + h * (i + 0.5)) for i in range(steps)],
                     [f"{x:g}" for x in v])  # fmt: skip
