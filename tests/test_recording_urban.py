@@ -85,8 +85,8 @@ def test_buildings_are_the_scenarios(urban: tuple[RrdLog, object, object]) -> No
     _, strips = log.column("map/buildings/outline", "LineStrips2D:strips")
     for strip, b in zip(strips[-1], bs, strict=True):
         fp = b.footprint()
-        np.testing.assert_allclose(np.asarray(strip), np.column_stack([fp[[0, 1, 2, 3, 0], 1], -fp[[0, 1, 2, 3, 0], 0]]),
-                                   atol=1e-3)  # fmt: skip
+        ring = fp[[0, 1, 2, 3, 0]]
+        np.testing.assert_allclose(np.asarray(strip), np.column_stack([ring[:, 1], -ring[:, 0]]), atol=1e-3)
     img, tr, scale = _image(log, "map/buildings/fill")
 
     def alpha_at(n: float, e: float) -> int:
