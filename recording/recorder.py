@@ -288,7 +288,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         return sent
 
     def _layout(self) -> Layout:
-        lay = Layout(bounds_ne=self.scene_bounds(), altitude_m=self.flight_altitude_m)
+        lay = Layout(bounds_ne=self.scene_bounds(), altitude_m=self.flight_altitude_m, top_m=self.top_m)
         span = self.phases.flight_span()
         if math.isfinite(self.t_first):
             t0, t1 = self.t_first, self.t_last

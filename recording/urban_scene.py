@@ -11,7 +11,7 @@ Logged once, only for a scenario with buildings (an open-field recording gains n
     map/wind_field/arrows              mean wind at flight altitude, an arrow every few metres (length
                                        by speed: the longest arrow is ``FIELD_ARROW_FILL`` of the spacing)
     map/wind_field/section             the trace of the vertical section on the map, labelled
-    map/wind_field/colorbar/*          the speed colour bar (m/s), left of the concentration one
+    map/wind_field/colorbar/*          the speed colour bar (m/s) in the map's bottom-right corner
     world/wind_field/section           mean wind speed on the vertical plane along the wind through the
                                        source (a translucent mesh, the same colours)
     world/wind_field/section/arrows    the in-plane wind on that plane (along-wind and vertical parts)
@@ -38,6 +38,7 @@ from recording.style import (
     C_BUILDING_MAP,
     C_FIELD_ARROW,
     C_FURNITURE,
+    SCENE_BACKGROUND,
     speed_colormap,
 )
 
@@ -88,6 +89,7 @@ class UrbanSceneMixin(SceneMixin):
     """Buildings and the mean wind field on the map and in 3D (see the module docstring)."""
 
     wind_vmax_m_s: float | None = None
+    top_m = 0.0  # the tallest building [m above the ground] (the 3D camera, recording.layout)
 
     def buildings(self, footprints_ne: Sequence[np.ndarray], heights_m: Sequence[float],
                   names: Sequence[str] | None = None) -> None:  # fmt: skip
@@ -99,6 +101,7 @@ class UrbanSceneMixin(SceneMixin):
         if not fps:
             return
         names = list(names) if names is not None else [""] * len(fps)
+        self.top_m = max(self.top_m, *hs)
         self._buildings_3d(fps, hs, names)
         self._buildings_map(fps, hs, names)
         near = np.array(self.scene_points) if self.scene_points else None
@@ -239,7 +242,7 @@ class UrbanSceneMixin(SceneMixin):
 
     def send_furniture(self, b: Bounds) -> None:
         """The map's furniture (:meth:`SceneMixin.send_furniture`) and, with a wind field, its speed
-        colour bar left of the concentration one."""
+        colour bar in the bottom-right corner (the concentration one is in the top-right)."""
         super().send_furniture(b)
         v_max = self.wind_vmax_m_s
         if v_max is None:
@@ -247,10 +250,15 @@ class UrbanSceneMixin(SceneMixin):
         n0, n1, e0, e1 = b
         span = min(n1 - n0, e1 - e0)
         pad, h = 0.05 * span, 0.07 * span
-        x_bar, y0 = e1 - pad - h - 2.6 * h, -n1 + pad
         steps = 5
+        # Bottom-right (the concentration bar is top-right; the source is often near the top).
+        x_bar, y0 = e1 - pad - h, -n0 - pad - h * (steps + 1.2)
         v = np.linspace(v_max, 0.0, steps)  # top = fast
-        rgba = np.concatenate([speed_colormap(v, v_max), np.full((steps, 1), 255, dtype=np.uint8)], axis=1)
+        # Opaque (the field's arrows would show through), in the colours the translucent field takes on the
+        # map's background.
+        a = WIND_MAP_ALPHA / 255.0
+        rgb = a * speed_colormap(v, v_max) + (1.0 - a) * np.asarray(SCENE_BACKGROUND, dtype=float)
+        rgba = np.concatenate([np.round(rgb).astype(np.uint8), np.full((steps, 1), 255, dtype=np.uint8)], axis=1)
         bar = rr.Transform3D(translation=[x_bar, y0, 0.0], scale=[h, h, 1.0])
         self.log_static("map/wind_field/colorbar/image", bar)
         self.log_static("map/wind_field/colorbar/image", rr.Image(rgba.reshape(steps, 1, 4), draw_order=39.0))
