@@ -41,6 +41,9 @@ if TYPE_CHECKING:
 
 #: Default margin of the plume slice around the sources and the start point [m].
 SLICE_MARGIN_M = 30.0
+#: Margin of the urban wind field's slice around the map's extent at attach time [m] (the path may
+#: widen the map later).
+FIELD_MARGIN_M = 20.0
 
 
 def wind_speed_from_deg(wind_ned: np.ndarray) -> tuple[float, float]:
@@ -113,7 +116,8 @@ def _section_plane(sim: Simulation, field: Any, res_m: float, altitude_m: float,
 
 def record_urban(sim: Simulation, recorder: RunRecorder, altitude_m: float) -> bool:
     """Log a scenario's buildings and its mean urban wind field (static: the mean field is steady):
-    the horizontal slice at ``altitude_m`` [m above the ground] over the map's extent and the
+    the horizontal slice at ``altitude_m`` [m above the ground] over the map's extent (plus
+    ``FIELD_MARGIN_M``) and the
     vertical section along the wind through the source. False (nothing logged) in an open field."""
     urban = getattr(sim.scenario, "urban", None)
     if urban is None or not urban.buildings:
@@ -124,6 +128,7 @@ def record_urban(sim: Simulation, recorder: RunRecorder, altitude_m: float) -> b
     if field is None:
         return True
     n0, n1, e0, e1 = recorder.scene_bounds()
+    n0, n1, e0, e1 = n0 - FIELD_MARGIN_M, n1 + FIELD_MARGIN_M, e0 - FIELD_MARGIN_M, e1 + FIELD_MARGIN_M
     res = max(float(field.scene.grid.spacing_m), max(n1 - n0, e1 - e0) / 200.0)
     xs, ys = np.arange(n0, n1 + 1e-9, res), np.arange(e0, e1 + 1e-9, res)
     nn, ee = np.meshgrid(xs, ys, indexing="ij")

@@ -32,7 +32,10 @@ URBAN_PREFIXES = ("map/buildings", "world/buildings", "map/wind_field", "world/w
 @pytest.fixture(scope="module")
 def urban(tmp_path_factory: pytest.TempPathFactory) -> tuple[RrdLog, object, object]:
     path = tmp_path_factory.mktemp("urban") / "s4.rrd"
-    run_trial("paper-s4", "surge-cast", seed=SEED, time_limit_s=4.0, recorder=TrialRecorder(path))
+    recorded = run_trial("paper-s4", "surge-cast", seed=SEED, time_limit_s=4.0, keep_track=True,
+                         recorder=TrialRecorder(path))  # fmt: skip
+    plain = run_trial("paper-s4", "surge-cast", seed=SEED, time_limit_s=4.0, keep_track=True)
+    assert recorded.track == plain.track and recorded.path_m == plain.path_m  # the layers only read the world
     sc = load_scenario("paper-s4")
     assert sc.urban is not None
     return RrdLog(path), sc, load_or_solve(sc.urban)
@@ -119,12 +122,15 @@ def test_map_opens_on_the_search_and_the_buildings(urban: tuple[RrdLog, object, 
 
 
 def test_wind_slice_is_the_fields(urban: tuple[RrdLog, object, object]) -> None:
-    log, _, field = urban
+    log, sc, field = urban
     alt = load_params("surge-cast").altitude_m  # the search altitude
     vmax = _vmax(log)
     img, tr, scale = _image(log, "map/wind_field/speed")
     rng = np.random.default_rng(7)
-    rows, cols = rng.integers(0, img.shape[0], 40), rng.integers(0, img.shape[1], 40)
+    bs = sc.urban.buildings  # type: ignore[attr-defined]
+    # Random pixels and the pixels at the buildings' centres.
+    rows = np.concatenate([rng.integers(0, img.shape[0], 40), [int((-b.x_m - tr[1]) / scale[1]) for b in bs]])
+    cols = np.concatenate([rng.integers(0, img.shape[1], 40), [int((b.y_m - tr[0]) / scale[0]) for b in bs]])
     e = tr[0] + (cols + 0.5) * scale[0]
     n = -(tr[1] + (rows + 0.5) * scale[1])
     pts = np.column_stack([n, e, np.full(len(n), -alt)])
