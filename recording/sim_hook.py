@@ -117,8 +117,8 @@ def _section_plane(sim: Simulation, field: Any, res_m: float, altitude_m: float,
 def record_urban(sim: Simulation, recorder: RunRecorder, altitude_m: float) -> bool:
     """Log a scenario's buildings and its mean urban wind field (static: the mean field is steady):
     the horizontal slice at ``altitude_m`` [m above the ground] over the map's extent (plus
-    ``FIELD_MARGIN_M``) and the
-    vertical section along the wind through the source. False (nothing logged) in an open field."""
+    ``FIELD_MARGIN_M``) and the vertical section along the wind through the source. False (nothing
+    logged) in an open field."""
     urban = getattr(sim.scenario, "urban", None)
     if urban is None or not urban.buildings:
         return False

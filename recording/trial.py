@@ -3,7 +3,8 @@
 ``run_trial(..., recorder=TrialRecorder(path))`` attaches the recorder once the simulation, the
 lockstep vehicle and the strategy exist, and hands it the trial's result at the end:
 
-- the simulation's truth through :func:`recording.sim_hook.record_simulation`;
+- the simulation's truth through :func:`recording.sim_hook.record_simulation` (in an urban
+  scenario also the buildings and the mean wind field, its slice at the strategy's ``altitude_m``);
 - the mission's status exactly as a MAVSDK runner sends it over MAVLink (the vehicle's
   ``publish``: strategy states, the declaration), so phases and events read the same as in
   ``windseek demo`` recordings;
