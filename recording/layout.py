@@ -66,6 +66,7 @@ class Layout:
     y_ranges: plot key -> (low, high) of its value axis.
     missing: panel or plot key -> one line saying why it has no data.
     markers: phase marker series exist (``markers/...``; they need fixed value axes).
+    top_m: the tallest thing in the scene above the ground [m] (buildings; aims the 3D camera).
     """
 
     bounds_ne: tuple[float, float, float, float] | None = None
@@ -74,6 +75,7 @@ class Layout:
     y_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     missing: dict[str, str] = field(default_factory=dict)
     markers: bool = False
+    top_m: float = 0.0
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -152,7 +154,10 @@ def view_3d(lay: Layout) -> rrb.View:
         cn, ce, cz = 0.5 * (n0 + n1), 0.5 * (e0 + e1), -0.5 * lay.altitude_m
         # From the south-east, above: the search reads left (start) to right (source, upwind).
         d = 0.7 * max(n1 - n0, (e1 - e0) / 1.4)  # the map was widened to 1.4: aim at the search itself
-        eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=(cn - 0.8 * d, ce + 0.6 * d, cz - 0.5 * d),
+        up = 0.5
+        if lay.top_m > lay.altitude_m:  # buildings: farther and higher, aimed at their middle height
+            d, up, cz = 1.15 * d, 0.75, -0.3 * lay.top_m
+        eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=(cn - 0.8 * d, ce + 0.6 * d, cz - up * d),
                                 look_target=(cn, ce, cz), eye_up=(0.0, 0.0, -1.0))  # fmt: skip
     return rrb.Spatial3DView(origin="/world", name=PANELS["3d"], eye_controls=eye,
                              background=rrb.Background(color=SCENE_BACKGROUND),

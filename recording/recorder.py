@@ -62,6 +62,7 @@ from recording.style import (
     VecLike,
 )
 from recording.summary import RunSummary
+from recording.urban_scene import UrbanSceneMixin
 
 #: Time between the two edges of one crossing of the +-2 sigma band [s] (far below a pixel).
 BAND_DT = 1.0e-4
@@ -73,7 +74,7 @@ _MARKERS = {"phase": ("take-off · search · landing", C_MARK_PHASE), "verify": 
             "declared": ("declared", C_MARK_DECLARED)}  # fmt: skip
 
 
-class RunRecorder(EventsMixin):
+class RunRecorder(EventsMixin, UrbanSceneMixin):
     """Writes one run to a ``.rrd`` file (see the module docstring for paths, units and rates).
 
     Args:
@@ -292,7 +293,7 @@ class RunRecorder(EventsMixin):
         return sent
 
     def _layout(self) -> Layout:
-        lay = Layout(bounds_ne=self.scene_bounds(), altitude_m=self.flight_altitude_m)
+        lay = Layout(bounds_ne=self.scene_bounds(), altitude_m=self.flight_altitude_m, top_m=self.top_m)
         span = self.phases.flight_span()
         if math.isfinite(self.t_first):
             t0, t1 = self.t_first, self.t_last

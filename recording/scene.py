@@ -22,6 +22,9 @@ Entity paths::
                                        (labels on their own points: .../label)
     map/geofence, world/geofence       the geofence outline
     map/north, map/scale, map/colorbar, world/north   north arrow, scale bar, concentration colour bar
+
+An urban scenario adds its buildings and mean wind field (``map/buildings/*``, ``world/buildings``,
+``map/wind_field/*``, ``world/wind_field/*``): :mod:`recording.urban_scene`.
 """
 
 from __future__ import annotations

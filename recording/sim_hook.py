@@ -14,9 +14,12 @@ rounded to a whole number of mode ticks):
     puff centres                            puffs_hz (0: off; the field above shows the plume)
     flight mode, arming, crash              on change (phases, events log)
 
-and once, at attach time: the true sources, the scene (start and sources, the take-off altitude)
-and the detection threshold. The plume hook is registered by ``Simulation.__init__`` before this
-one, so the chemical reading and plume state logged at a tick are those of that same tick.
+and once, at attach time: the true sources, the scene (start and sources, the take-off altitude),
+the detection threshold and, in an urban scenario (``[urban]`` buildings), the buildings and the
+mean wind field at flight altitude and on the vertical plane along the wind through the source
+(:func:`record_urban`, :mod:`recording.urban_scene`). The plume hook is registered by
+``Simulation.__init__`` before this one, so the chemical reading and plume state logged at a tick
+are those of that same tick.
 
 Estimator and strategy data are logged by their runners through the recorder's methods
 (``wind(est_ned=...)``, ``wind_speed_dir``, ``strategy_state``, ``declare``, ``summary``), on the
@@ -27,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,6 +41,9 @@ if TYPE_CHECKING:
 
 #: Default margin of the plume slice around the sources and the start point [m].
 SLICE_MARGIN_M = 30.0
+#: Margin of the urban wind field's slice around the map's extent at attach time [m] (the path may
+#: widen the map later).
+FIELD_MARGIN_M = 20.0
 
 
 def wind_speed_from_deg(wind_ned: np.ndarray) -> tuple[float, float]:
@@ -77,6 +83,9 @@ class _Curtain:
         self.s = np.arange(-10.0, reach + 1e-9, resolution_m)
         self.z = -np.arange(0.0, max(3.0 * altitude_m, 12.0) + 1e-9, 0.5 * resolution_m)
         self.src_z = float(src[2])
+        # Buildings (an urban wind field's exact prisms): no plume drawn inside them.
+        self.inside: Callable[[np.ndarray], np.ndarray] | None = getattr(getattr(sim.wind, "field", None), "inside",
+                                                                          None)  # fmt: skip
 
     def points(self, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
         """Downwind unit vector (north, east) of the mean wind at the source now, and the (S*Z, 3) points."""
@@ -86,6 +95,55 @@ class _Curtain:
         ss, zz = np.meshgrid(self.s, self.z, indexing="ij")
         pts = np.column_stack([self.origin[0] + ss.ravel() * d[0], self.origin[1] + ss.ravel() * d[1], zz.ravel()])
         return d, pts
+
+
+def _section_plane(sim: Simulation, field: Any, res_m: float, altitude_m: float,
+                   top_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Origin (the first source, else the start), downwind unit vector (north, east) of the mean wind
+    at the source (the plume's curtain's plane, :class:`_Curtain`; the upstream wind where it is
+    calm), s [m] from 25 m upwind to 25 m past the start's along-wind distance, heights [m]."""
+    start = np.asarray(sim.scenario.start.position_ned, dtype=float)[:2]
+    src = sim.chem.sources_ned[0] if sim.chem is not None else np.array([*start, -altitude_m])
+    origin = np.array(src[:2], dtype=float)
+    w = np.asarray(sim.wind.mean(sim.t, np.asarray(src, dtype=float)), dtype=float)[:2]
+    up = np.asarray(field.scene.wind.direction_ned, dtype=float)
+    u = w / float(np.hypot(*w)) if float(np.hypot(*w)) > 1e-6 else up
+    reach = max(float((start - origin) @ u), 0.0) + 25.0
+    s = np.arange(-25.0, reach + 1e-9, res_m)
+    h = np.arange(0.0, max(top_m, 3.0 * altitude_m, 12.0) + 1e-9, min(1.0, res_m))
+    return origin, u, s, h
+
+
+def record_urban(sim: Simulation, recorder: RunRecorder, altitude_m: float) -> bool:
+    """Log a scenario's buildings and its mean urban wind field (static: the mean field is steady):
+    the horizontal slice at ``altitude_m`` [m above the ground] over the map's extent (plus
+    ``FIELD_MARGIN_M``) and the vertical section along the wind through the source. False (nothing
+    logged) in an open field."""
+    urban = getattr(sim.scenario, "urban", None)
+    if urban is None or not urban.buildings:
+        return False
+    bs = list(urban.buildings)
+    recorder.buildings([b.footprint() for b in bs], [b.height_m for b in bs], [getattr(b, "name", "") for b in bs])
+    field = getattr(sim.wind, "field", None)  # sitl.world.urban.UrbanWindField: mean(), inside(), scene
+    if field is None:
+        return True
+    n0, n1, e0, e1 = recorder.scene_bounds()
+    n0, n1, e0, e1 = n0 - FIELD_MARGIN_M, n1 + FIELD_MARGIN_M, e0 - FIELD_MARGIN_M, e1 + FIELD_MARGIN_M
+    res = max(float(field.scene.grid.spacing_m), max(n1 - n0, e1 - e0) / 200.0)
+    xs, ys = np.arange(n0, n1 + 1e-9, res), np.arange(e0, e1 + 1e-9, res)
+    nn, ee = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.column_stack([nn.ravel(), ee.ravel(), np.full(nn.size, -altitude_m)])
+    w = np.array(field.mean(pts), dtype=float)
+    w[np.asarray(field.inside(pts), dtype=bool)] = np.nan
+    recorder.wind_field_slice(xs, ys, w[:, :2].reshape(len(xs), len(ys), 2), altitude_m)
+    origin, u, s, h = _section_plane(sim, field, res, altitude_m, 1.5 * max(b.height_m for b in bs))
+    ss, hh = np.meshgrid(s, h, indexing="ij")
+    pts = np.column_stack([origin[0] + ss.ravel() * u[0], origin[1] + ss.ravel() * u[1], -hh.ravel()])
+    w = np.array(field.mean(pts), dtype=float)
+    w[np.asarray(field.inside(pts), dtype=bool)] = np.nan
+    along = (w[:, :2] @ u).reshape(len(s), len(h))
+    recorder.wind_field_section(origin, u, s, h, along, w[:, 2].reshape(len(s), len(h)))
+    return True
 
 
 def record_simulation(
@@ -98,6 +156,7 @@ def record_simulation(
     puffs_hz: float = 0.0,
     slice_resolution_m: float = 2.0,
     slice_bounds_ned: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    field_altitude_m: float | None = None,
     meter: Callable[..., object] | None = None,
 ) -> Callable[[Simulation], None]:
     """Log ``sim``'s truth to ``recorder`` from now on (see the module docstring for rates).
@@ -109,6 +168,8 @@ def record_simulation(
         slice_resolution_m: grid spacing of the plume slices [m].
         slice_bounds_ned: ((n_min, n_max), (e_min, e_max)) of the horizontal slice [m]; default: the
             sources and the start point with a ``SLICE_MARGIN_M`` margin.
+        field_altitude_m: height of the urban wind field's horizontal slice [m above the ground]
+            (default: the take-off altitude).
         meter: ``meter(fn, sim)`` runs the logging of a tick that has something due and counts its
             CPU time (``recording.stream.CpuMeter``). Only those ticks: the per-tick check before
             them costs about a microsecond, a meter call (two thread-CPU clock reads) five.
@@ -128,6 +189,7 @@ def record_simulation(
     if chem is not None:
         recorder.sources(sources)
         recorder.set_chem_threshold(chem.sensor.config.detection_limit_mg_m3)
+    record_urban(sim, recorder, -takeoff_z if field_altitude_m is None else float(field_altitude_m))
     xr, yr = slice_bounds_ned or _slice_bounds(sim, SLICE_MARGIN_M)
     xs = np.linspace(xr[0], xr[1], max(2, round((xr[1] - xr[0]) / slice_resolution_m) + 1))
     ys = np.linspace(yr[0], yr[1], max(2, round((yr[1] - yr[0]) / slice_resolution_m) + 1))
@@ -197,6 +259,8 @@ def record_simulation(
                 if curtain is not None:
                     d, cpts = curtain.points(s)
                     cc = np.asarray(pl.concentration(cpts)).reshape(len(curtain.s), len(curtain.z))
+                    if curtain.inside is not None:
+                        cc = np.where(np.asarray(curtain.inside(cpts)).reshape(cc.shape), 0.0, cc)
                     recorder.plume_curtain(t, curtain.origin, d, curtain.s, curtain.z, cc)
             if n_puffs and k % n_puffs == 0 and s.chem is not None and (puffs := s.chem.puff_array()) is not None:
                 recorder.puffs(t, puffs)
@@ -205,4 +269,4 @@ def record_simulation(
     return hook
 
 
-__all__ = ["SLICE_MARGIN_M", "record_simulation", "wind_speed_from_deg"]
+__all__ = ["SLICE_MARGIN_M", "record_simulation", "record_urban", "wind_speed_from_deg"]

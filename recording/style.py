@@ -46,6 +46,13 @@ C_POSTERIOR: Rgb = (94, 60, 153)  # purple: a strategy's source posterior
 C_MARK_PHASE: Rgb = (110, 110, 110)
 C_MARK_VERIFY: Rgb = (148, 103, 189)
 C_MARK_DECLARED: Rgb = (0, 140, 60)
+#: Buildings (urban scenarios): a translucent warm grey fill (the path, plume and field behind stay
+#: visible), a dark outline and dark labels.
+C_BUILDING: tuple[int, int, int, int] = (150, 140, 125, 110)
+C_BUILDING_MAP: tuple[int, int, int, int] = (120, 112, 100, 190)
+C_BUILDING_EDGE: Rgb = (70, 62, 52)
+#: Arrows of the mean wind field (map and vertical section): dark slate, under the path's colours.
+C_FIELD_ARROW: Rgb = (55, 65, 85)
 #: Background of the map and 3D views (fixed, so the colour maps read the same in both themes).
 SCENE_BACKGROUND: Rgb = (246, 245, 240)
 
@@ -87,6 +94,18 @@ PHASE_COLORS: tuple[Rgb, ...] = ((170, 170, 170), (200, 200, 120), (120, 170, 22
 # faint edge never darkens the scene, dark red at the core.
 _CONC_X = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
 _CONC_RGB = np.array([[255, 245, 180], [254, 204, 92], [253, 141, 60], [227, 26, 28], [128, 0, 38]], dtype=float)
+
+# Wind speed colour map (after ColorBrewer GnBu, its light end pale): calm air light, fast air
+# teal-blue; unlike the plume's yellow-red, and drawn translucent under everything else.
+_WIND_X = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+_WIND_RGB = np.array([[247, 252, 240], [204, 235, 197], [123, 204, 196], [43, 140, 190], [8, 64, 129]], dtype=float)
+
+
+def speed_colormap(v: np.ndarray, v_max: float) -> np.ndarray:
+    """Wind speeds [m/s] to RGB (N, 3) uint8 on a linear scale from 0 to ``v_max`` (clipped)."""
+    s = np.clip(np.ravel(np.asarray(v, dtype=float)) / max(float(v_max), 1e-9), 0.0, 1.0)
+    rgb = np.column_stack([np.interp(s, _WIND_X, _WIND_RGB[:, k]) for k in range(3)])
+    return np.round(rgb).astype(np.uint8)
 
 
 def state_color(state: str) -> Rgb:
@@ -143,8 +162,9 @@ def posterior_image(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
 
 
 __all__ = [
-    "AXES", "C_AUTOPILOT", "C_BAND", "C_DECLARED", "C_EST", "C_FENCE", "C_FURNITURE", "C_MAP_EST", "C_MAP_TRUTH",
-    "C_MARK_DECLARED", "C_MARK_PHASE", "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH",
-    "C_TRAIL_3D", "C_TRUTH", "C_VEHICLE", "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT",
-    "TEXT_LEVELS", "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_image", "state_color",
+    "AXES", "C_AUTOPILOT", "C_BAND", "C_BUILDING", "C_BUILDING_EDGE", "C_BUILDING_MAP", "C_DECLARED", "C_EST",
+    "C_FENCE", "C_FIELD_ARROW", "C_FURNITURE", "C_MAP_EST", "C_MAP_TRUTH", "C_MARK_DECLARED", "C_MARK_PHASE",
+    "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH", "C_TRAIL_3D", "C_TRUTH", "C_VEHICLE",
+    "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT", "TEXT_LEVELS", "TIMELINE", "VecLike",
+    "conc_image", "log_colormap", "log_scale", "posterior_image", "speed_colormap", "state_color",
 ]  # fmt: skip

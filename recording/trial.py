@@ -3,7 +3,8 @@
 ``run_trial(..., recorder=TrialRecorder(path))`` attaches the recorder once the simulation, the
 lockstep vehicle and the strategy exist, and hands it the trial's result at the end:
 
-- the simulation's truth through :func:`recording.sim_hook.record_simulation`;
+- the simulation's truth through :func:`recording.sim_hook.record_simulation` (in an urban
+  scenario also the buildings and the mean wind field, its slice at the strategy's ``altitude_m``);
 - the mission's status exactly as a MAVSDK runner sends it over MAVLink (the vehicle's
   ``publish``: strategy states, the declaration), so phases and events read the same as in
   ``windseek demo`` recordings;
@@ -86,10 +87,12 @@ class TrialRecorder:
         self.sim, self.vehicle, self.strategy = sim, vehicle, strategy
         self.home = np.asarray(sim.position, dtype=float).copy()
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
-        self.rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
-                                                  strategy=getattr(strategy, "name", None), **self.recorder_kw))
-        record_simulation(sim, self.rec, vehicle_hz=self.rates["vehicle_hz"], series_hz=self.rates["series_hz"],
-                          slice_hz=self.rates["slice_hz"], meter=self.meter)  # fmt: skip
+        self.rec = rec = self.meter(lambda: RunRecorder(self.path, scenario=sim.scenario.name, seed=sim.seed,
+                                                        strategy=getattr(strategy, "name", None), **self.recorder_kw))
+        alt = getattr(params, "altitude_m", None)  # the search altitude: the urban wind field's slice
+        self.meter(lambda: record_simulation(sim, rec, vehicle_hz=self.rates["vehicle_hz"],
+                                             series_hz=self.rates["series_hz"], slice_hz=self.rates["slice_hz"],
+                                             field_altitude_m=alt, meter=self.meter))  # fmt: skip
         publish = vehicle.publish
 
         def record(pairs: list[tuple[str, str]]) -> None:

@@ -284,7 +284,9 @@ class WireRecorder:
                                                                seed=sim.seed, series_flush_s=15.0))  # fmt: skip
         if geofence_ned is not None:
             self.rec.geofence(*geofence_ned)
-        record_simulation(sim, self.rec, vehicle_hz=5.0, series_hz=5.0, slice_hz=0.2, meter=self.meter)
+        # Metered: an urban scenario's buildings and wind field are logged here, once.
+        self.meter(lambda: record_simulation(sim, self.rec, vehicle_hz=5.0, series_hz=5.0, slice_hz=0.2,
+                                             meter=self.meter))  # fmt: skip
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
         # The path (t, n, e, d) at every mode tick of the last 60 s: an estimate is scored against the
         # wind field at its nearest tick's time and position (estimates arrive late). The field is
