@@ -151,7 +151,9 @@ class SceneMixin(RecorderBase):
         n0, n1, e0, e1 = lo[0], hi[0], lo[1], hi[1]
         if self.geofence_ne is not None:
             g = self.geofence_ne
-            n0, n1, e0, e1 = max(n0, g[0]), min(n1, g[1]), max(e0, g[2]), min(e1, g[3])
+            cut = max(n0, g[0]), min(n1, g[1]), max(e0, g[2]), min(e1, g[3])
+            if cut[1] - cut[0] >= min_margin_m and cut[3] - cut[2] >= min_margin_m:  # else a fence elsewhere: ignored
+                n0, n1, e0, e1 = cut
         return float(n0), float(n1), float(e0), float(e1)
 
     def send_furniture(self, b: Bounds) -> None:

@@ -89,6 +89,7 @@ class _Plan:
     files: dict[str, Path]
     truth_path: Path
     fence: str
+    buildings: bool  # the scenario has [urban] buildings: the mission flies among them (--buildings)
 
 
 def _plan(args: argparse.Namespace) -> _Plan:
@@ -112,8 +113,20 @@ def _plan(args: argparse.Namespace) -> _Plan:
         imu_average=int(args.imu_average), wall_limit=float(args.wall_limit), base=base,
         files={k: Path(f"{base}.{k}") for k in ("rrd", "tlog", "json") if not (k == "rrd" and args.no_rrd)},
         truth_path=Path(f"{base}.truth.json"),
-        fence=",".join(f"{v:g}" for v in (*limits.box_min_ned, *limits.box_max_ned)),
+        # The mission's box is about home (the start); the SITL draws it in its local frame.
+        fence=",".join(f"{h + v:g}" for h, v in zip((*sc.start.position_ned, *sc.start.position_ned),
+                                                     (*limits.box_min_ned, *limits.box_max_ned), strict=True)),
+        buildings=sc.urban is not None and bool(sc.urban.buildings),
     )  # fmt: skip
+
+
+def mission_argv(pl: _Plan, port: int) -> list[str]:
+    """``windseek mission``'s arguments in a demo: the estimator's wind from the network and, in a
+    scenario with buildings, those buildings as exclusion zones (without them the search flies into
+    the first block in its way)."""
+    return ["mission", "--connect", f"udpin://127.0.0.1:{port}", "--strategy", pl.strategy, "--wind", "mavlink",
+            "--speed-hint", f"{pl.speed:g}", "--seed", str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json",
+            *(["--buildings", pl.scenario] if pl.buildings else [])]  # fmt: skip
 
 
 class _Demo:
@@ -187,10 +200,8 @@ class _Demo:
             loss_t = 1.0 * pl.speed
             if obs.set_param("COM_OF_LOSS_T", loss_t):
                 self.note(f"  offboard-loss timeout COM_OF_LOSS_T = {loss_t:g} s of vehicle time (1 s of wall clock)")
-        mis = self._start("mission", ["mission", "--connect", f"udpin://127.0.0.1:{self.p_mis}", "--strategy",
-                                      pl.strategy, "--wind", "mavlink", "--speed-hint", f"{pl.speed:g}", "--seed",
-                                      str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json"],
-                          on_line=on_line, stdout_path=Path(f"{pl.base}.mission.json"))  # fmt: skip
+        mis = self._start("mission", mission_argv(pl, self.p_mis), on_line=on_line,
+                          stdout_path=Path(f"{pl.base}.mission.json"))
         last_line = time.monotonic()
         while mis.popen.poll() is None:
             if time.monotonic() - self.wall0 > pl.wall_limit:

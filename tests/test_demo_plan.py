@@ -1,0 +1,53 @@
+"""The demo's plan (``windseek demo``): what it asks of the mission process, checked without
+starting one. A demo in a city must fly among the scenario's buildings, as a user would start
+``windseek mission --buildings`` (the first paper-s4 demo without it flew into block-2)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from mission.runners.fence import SiteBuildings
+from windseek.cmd_demo import _plan, add_parser, mission_argv
+
+
+def _args(tmp_path: Path, *argv: str) -> argparse.Namespace:
+    ap = argparse.ArgumentParser()
+    add_parser(ap.add_subparsers())
+    return ap.parse_args(["demo", "--logs", str(tmp_path), *argv])
+
+
+@pytest.mark.parametrize(("scenario", "buildings"), [("paper-s4", True), ("open-field", False)])
+def test_the_mission_gets_the_buildings_of_an_urban_scenario(tmp_path: Path, scenario: str, buildings: bool) -> None:
+    pl = _plan(_args(tmp_path, "--scenario", scenario, "--strategy", "zigzag", "--seed", "7"))
+    argv = mission_argv(pl, 14999)
+    assert argv[:3] == ["mission", "--connect", "udpin://127.0.0.1:14999"]
+    assert argv[argv.index("--seed") + 1] == "7" and argv[argv.index("--strategy") + 1] == "zigzag"
+    assert ("--buildings" in argv) is buildings
+    if buildings:  # the argument names a scenario the mission can read its buildings from
+        site = SiteBuildings.from_scenario_file(argv[argv.index("--buildings") + 1])
+        assert len(site.obstacles.buildings) == 6
+
+
+def test_the_recorded_geofence_is_the_missions_box_about_the_start(tmp_path: Path) -> None:
+    """The mission's box is about home; the SITL draws it in its local frame, where paper-s4 starts
+    at (340, 30) m: a box about the origin cut the recording's map away from the whole search."""
+    pl = _plan(_args(tmp_path, "--scenario", "paper-s4"))
+    n0, e0, d0, n1, e1, d1 = (float(v) for v in pl.fence.split(","))
+    assert (n0 + n1) / 2 == pytest.approx(340.0) and (e0 + e1) / 2 == pytest.approx(30.0)
+    assert n1 - n0 == pytest.approx(300.0) and d0 < d1 <= 0.0
+
+
+def test_a_fence_away_from_the_scene_does_not_empty_the_map(tmp_path: Path) -> None:
+    from recording.recorder import RunRecorder
+
+    with RunRecorder(tmp_path / "r.rrd", blueprint=False) as rec:
+        rec.set_scene([[340.0, 30.0], [428.0, 118.0]])
+        inside = rec.scene_bounds()
+        rec.geofence((-150.0, -150.0, -30.0), (150.0, 150.0, 0.0))  # about the origin: nowhere near
+        assert rec.scene_bounds() == inside
+        rec.geofence((190.0, -120.0, -30.0), (400.0, 180.0, 0.0))  # overlapping: the map is cut to it
+        n0, n1, e0, e1 = rec.scene_bounds()
+        assert n1 == 400.0 and n0 == inside[0] and e0 == inside[2]
