@@ -344,6 +344,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         if self.blueprint:
             self.rec.send_blueprint(make_blueprint(lay), make_active=True, make_default=True)
         if cost is not None:
+            # Blocking: rerun's threads encode and write everything sent so far before their CPU is read.
+            self.rec.flush()
             self.property("recording_cost", **cost())
         self._close_stream()
 

@@ -232,17 +232,16 @@ def record_simulation(
     def due(s: Simulation, k: int) -> None:
         t = s.t
         pos = s.x[0:3]
-        wind: np.ndarray | None = None
+        # The wind the physics used at its newest IMU instant (<= 1 IMU period before t), at that
+        # instant's own time: no second sample of the field (~10 us) per row.
+        t_wind, wind = s.last_wind
         if n_vehicle and k % n_vehicle == 0:
-            wind = s.wind_at_vehicle
             recorder.vehicle(t, pos, s.x[6:10])
             recorder.wind_arrows(t, pos, wind)
         if n_series and k % n_series == 0:
-            if wind is None:
-                wind = s.wind_at_vehicle
-            recorder.wind(t, truth_ned=wind)
+            recorder.wind(t_wind, truth_ned=wind)
             speed, from_deg = wind_speed_from_deg(wind)
-            recorder.wind_speed_dir(t, None, None, truth_speed=speed, truth_dir_deg=from_deg)
+            recorder.wind_speed_dir(t_wind, None, None, truth_speed=speed, truth_dir_deg=from_deg)
             recorder.rotors(t, s.x[13:17])
         reading = s.chem.latest if s.chem is not None else None
         if reading is not None and reading.t != last["chem_t"]:

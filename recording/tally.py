@@ -23,6 +23,7 @@ class FlightTally:
 
     def __init__(self, sources_ned: Sequence[VecLike] | np.ndarray, airborne_m: float = 1.0) -> None:
         self.sources = np.asarray(sources_ned, dtype=float).reshape(-1, 3)[:, :2]
+        self._sources_ne = [(float(n), float(e)) for n, e in self.sources]  # floats: tested at every tick
         self.airborne_m = airborne_m
         self.home: np.ndarray | None = None
         self.total_m = 0.0
@@ -43,8 +44,8 @@ class FlightTally:
             self.total_m += step
             if searching and not declared:
                 self.search_m += step
-                if math.isnan(self.reach_m) and any(math.hypot(p[0] - s[0], p[1] - s[1]) <= FOUND_RADIUS_M
-                                                    for s in self.sources):  # fmt: skip
+                if math.isnan(self.reach_m) and any(math.hypot(p[0] - n, p[1] - e) <= FOUND_RADIUS_M
+                                                    for n, e in self._sources_ne):  # fmt: skip
                     self.reach_m = self.search_m
         self._prev = p
 

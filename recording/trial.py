@@ -136,7 +136,7 @@ class TrialRecorder:
             speed, from_deg = wind_speed_from_deg(est)
             filt = math.degrees(wi.upwind_rad) if math.isfinite(wi.upwind_rad) else None
             rec.wind_speed_dir(t, speed, from_deg, None, filt)
-            self.tally.wind(est, sim.wind_at_vehicle, -(pos[2] - self.home[2]))
+            self.tally.wind(est, sim.last_wind[1], -(pos[2] - self.home[2]))
         if t - self._t_post >= self.posterior_dt - 1e-9:
             self._t_post = t
             record_posterior(rec, t, self.strategy, self.posterior_cell_m)

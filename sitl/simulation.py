@@ -161,6 +161,8 @@ class Simulation:
     rates = property(lambda self: self.world.rates, doc="Body rates (FRD), rad/s.")
     rotor_speeds = property(lambda self: self.world.rotor_speeds, doc="Rotor speeds, rad/s.")
     wind_at_vehicle = property(lambda self: self.world.wind_at_vehicle, doc="True wind at the vehicle, NED, m/s.")
+    last_wind = property(lambda self: self.world.last_wind, doc="(t s, NED m/s) the wind the physics used at its "
+                         "newest IMU instant (no new sample of the field: wind_at_vehicle samples it again, ~10 us).")
     on_ground = property(lambda self: self.world.on_ground)
     crashed = property(lambda self: self.world.crashed)
     specific_force = property(lambda self: self.world.specific_force, doc="True specific force, FRD, m/s^2.")

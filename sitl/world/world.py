@@ -41,6 +41,7 @@ from sitl.world.kernel import (
     T_RATES,
     T_ROTORS,
     T_SPECIFIC_FORCE,
+    T_WIND,
     Obstacles,
     advance_commanded,
 )
@@ -227,6 +228,14 @@ class World:
     def wind_at_vehicle(self) -> np.ndarray:
         """True air-mass velocity at the vehicle now (mean + turbulence), NED, m/s."""
         return np.asarray(self.wind.velocity(self.t, self.phys.x[0:3]), dtype=float)
+
+    @property
+    def last_wind(self) -> tuple[float, np.ndarray]:
+        """(time [s], air-mass velocity NED [m/s]) the physics used at its newest IMU instant, at most
+        one IMU period ago: no new sample of the field. Before the first IMU instant: now, sampled."""
+        if self._imu_count == 0:
+            return self.t, self.wind_at_vehicle
+        return float(self.last_truth[0]), self.last_truth[T_WIND]
 
     @property
     def on_ground(self) -> bool:
