@@ -62,10 +62,12 @@ def record_posterior(rec: RunRecorder, t: float, strategy: object, cell_m: float
 class TrialRecorder:
     """Records one in-process trial (see the module docstring); rates in Hz (lower than the SITL's
     defaults: a lockstep trial runs many times faster than real time, and the recording must stay
-    within 10 % of its cost, ``benchmarks/recording_cost.py``), ``**recorder_kw`` for :class:`RunRecorder`."""
+    within 10 % of its cost, ``benchmarks/recording_cost.py``: the plume's slices every 10 s, the
+    SITL's every 5 s, as the two slices and their images are a fifth of the recorder's CPU),
+    ``**recorder_kw`` for :class:`RunRecorder`."""
 
     def __init__(self, path: Path | str, *, vehicle_hz: float = 5.0, series_hz: float = 5.0,
-                 slice_hz: float = 0.2, posterior_hz: float = 1.0, posterior_cell_m: float = 1.0,
+                 slice_hz: float = 0.1, posterior_hz: float = 1.0, posterior_cell_m: float = 1.0,
                  **recorder_kw: Any) -> None:  # fmt: skip
         self.path = Path(path)
         self.rates = {"vehicle_hz": vehicle_hz, "series_hz": series_hz, "slice_hz": slice_hz}
