@@ -102,7 +102,7 @@ def _task_cpu_s(tid: str) -> float:
 
 class CpuMeter:
     """CPU time a caller spends recording: ``meter(fn, *args)`` runs ``fn`` and adds the calling
-    thread's CPU time it took (``time.thread_time``, about a microsecond per call). Calls are not
+    thread's CPU time it took (``time.thread_time``: a system call, 1-2 us, twice per call). Calls are not
     nested; :meth:`report` counts a call in progress up to that moment (a recorder's ``close``
     reports its cost from inside, before the stream closes)."""
 

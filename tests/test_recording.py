@@ -228,6 +228,10 @@ def test_recorder_methods_with_known_values(tmp_path: Path) -> None:
     np.testing.assert_allclose([h[0] for h in hits], [[0.0, -0.5 * k] for k in range(5, 20)])
     _, colors = la.column("map/hits", "Points2D:colors")
     assert len({tuple(c) for c in colors}) > 1  # coloured by concentration
+    # each hit's own concentration on the colour scale (mapped per sent batch: RGBA packed 0xRRGGBBAA)
+    rgb = log_colormap(0.2 * np.arange(5, 20), *a.c_range_mg_m3)
+    want = [(int(r) << 24) | (int(g) << 16) | (int(b) << 8) | 0xFF for r, g, b in rgb]
+    assert [int(np.ravel(c)[0]) for c in colors] == want
     t_dec, lab = la.column("map/sources/declared/label", "Points2D:labels")
     assert lab == [["declared 90%"]] and t_dec[0] == pytest.approx(1.9)  # at the latest time logged
     # In 3D the labels sit on their own points, the true source's above it, the declared one's below:
