@@ -41,8 +41,9 @@ import numpy as np
 from mission.strategies.base import Observation, Setpoint, heading_of, heading_vec
 from mission.strategies.common import BaseStrategy
 from mission.strategies.params import InfotaxisParams
+from mission.strategies.ste_adapt import DirectionSpread, adapted_likelihood, mismatch_factor
 from mission.strategies.ste_filter import PriorBox, SourcePosterior
-from mission.strategies.ste_model import model_constants
+from mission.strategies.ste_model import model_constants, set_meander
 
 #: Time constant of the wind-speed average the plume model uses [s].
 SPEED_TAU_S = 10.0
@@ -81,6 +82,8 @@ class Infotaxis(BaseStrategy):
         self._plan_due = False
         self._disc_at = -1
         self._center = np.zeros(2)
+        self.spread = DirectionSpread(p.spread_tau_s, p.min_wind_m_s)
+        self.mismatch = 1.0
 
     # ------------------------------------------------------------------ wind
     def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
@@ -120,6 +123,8 @@ class Infotaxis(BaseStrategy):
         self.t_prev = obs.t
         hit = self.memory.add(obs)
         wind = self._plume_wind(obs, dt)
+        if obs.wind is not None:
+            self.spread.add(float(obs.wind.wind_ned[0]), float(obs.wind.wind_ned[1]), dt)
         u_vec = heading_vec(obs.wind.upwind_rad) if wind is not None and obs.wind is not None else heading_vec(0.0)
         if self.declared is not None:
             return self._descend(obs, u_vec)
@@ -151,7 +156,7 @@ class Infotaxis(BaseStrategy):
         return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
                         yaw_rad=heading_of(u_vec), state="search",
                         info={"credible_radius_m": self.credible_radius, "info_bits": self.last_info,
-                              "ess": self.post.ess()})
+                              "ess": self.post.ess(), "mismatch": self.mismatch})
 
     def _add_reading(self, obs: Observation, hit: bool, downwind: float, speed: float) -> bool:
         """Put a new reading into the current bin; a full bin updates the posterior: a hit if any
@@ -177,6 +182,7 @@ class Infotaxis(BaseStrategy):
             b[6] += 1.0
         if obs.t - b[0] < p.bin_s - 1e-6:
             return False
+        self._adapt()
         if b[6] > 0.0:
             self.post.update(obs.t, b[4] / b[6], b[5] / b[6], self.alt, True, downwind, speed)
             self.n_hits += 1
@@ -185,6 +191,16 @@ class Infotaxis(BaseStrategy):
             self.n_misses += 1
         b.clear()
         return True
+
+    def _adapt(self) -> None:
+        """Widen the likelihood by the measured direction spread (``ste_adapt``): the tempering
+        and the meander the next reading is weighed with."""
+        p = self.p
+        self.mismatch = mismatch_factor(self.spread.spread_rad, math.radians(p.spread_reference_deg))
+        kappa, meander = adapted_likelihood(self.mismatch, p.tempering, math.radians(p.meander_deg),
+                                            p.spread_tempering_power, p.spread_meander_power)
+        self.post.kappa = kappa
+        set_meander(self.post.mc, meander)
 
     def _speed(self, obs: Observation, center: np.ndarray) -> float:
         """Ground speed [m/s]: ``speed_m_s`` while the source is far or unknown, ``near_speed_m_s``
@@ -237,7 +253,8 @@ class Infotaxis(BaseStrategy):
         self.diag = {"credible_radius_m": self.credible_radius, "n_hits": float(self.n_hits),
                      "n_misses": float(self.n_misses), "n_resamples": float(self.post.n_resamples),
                      "source_height_m": self.post.mean_height(),
-                     "release_g_s": float(10.0 ** (self.post.w @ self.post.lq))}
+                     "release_g_s": float(10.0 ** (self.post.w @ self.post.lq)),
+                     "direction_spread_deg": math.degrees(self.spread.spread_rad), "mismatch": self.mismatch}
 
     def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
         sp = super()._descend(obs, u)

@@ -163,6 +163,12 @@ class InfotaxisParams(CommonParams):
     tempering: float = _p(1.0, 0.01, 1.0, "exponent on each bin's likelihood: consecutive bins of a first-order "
                           "sensor in an intermittent plume are correlated, not independent")
     stability: str = _c("D", ("A", "B", "C", "D", "E", "F"), "Pasquill-Gifford class of the plume model")
+    spread_reference_deg: float = _p(10.0, 0.0, 180.0, "the model holds while the wind estimate's direction "
+                                     "spread (circular std over spread_tau_s) is at most this [deg]; above, the "
+                                     "likelihood widens by the ratio f (0: never)")
+    spread_tau_s: float = _p(15.0, 1.0, 600.0, "time constant of the direction spread [s]")
+    spread_tempering_power: float = _p(2.0, 0.0, 4.0, "tempering divided by f to this power")
+    spread_meander_power: float = _p(1.0, 0.0, 4.0, "meander direction sigma times f to this power")
     bin_s: float = _p(0.5, 0.05, 10.0, "readings are grouped into bins this long; a bin is a hit if any reading "
                       "in it is one (hits come in bursts) [s]")
     persistence_s: float = _p(0.7, 0.01, 60.0, "correlation time of being inside the intermittent plume (hits "

@@ -77,6 +77,11 @@ def model_constants(stability: str, source_radius_m: float, intermittency_length
                      eps, sigma_up_m**2, meander_fraction, meander_rad**2], dtype=np.float64)
 
 
+def set_meander(mc: np.ndarray, meander_rad: float) -> None:
+    """Set the meander's direction sigma [rad] of the constant vector ``mc`` in place."""
+    mc[_MTH2] = meander_rad**2
+
+
 def meander_nodes(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Hermite nodes (standard normal) and log weights of the meander random effect."""
     x, w = np.polynomial.hermite_e.hermegauss(n)
