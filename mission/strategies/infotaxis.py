@@ -69,7 +69,7 @@ class Infotaxis(BaseStrategy):
         self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x1F07A5]))
         self.post = SourcePosterior(p.n_particles, mc, p.tempering, p.jitter, self.rng, int(p.meander_nodes),
                                     p.meander_window_s, math.exp(-p.bin_s / p.persistence_s), p.rejuvenate,
-                                    (p.rejuvenate_along_m, p.rejuvenate_across_m))
+                                    (p.rejuvenate_along_m, p.rejuvenate_across_m), bool(p.rejuvenate_weighed))
         self.speed = math.nan
         self.heading: float | None = None
         self.credible_radius = math.nan
@@ -84,6 +84,8 @@ class Infotaxis(BaseStrategy):
         self._center = np.zeros(2)
         self.spread = DirectionSpread(p.spread_tau_s, p.min_wind_m_s)
         self.mismatch = 1.0
+        self._sure_since = math.nan
+        self._sure_at = np.zeros(2)
 
     # ------------------------------------------------------------------ wind
     def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
@@ -145,7 +147,7 @@ class Infotaxis(BaseStrategy):
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
             self.confidence = self.post.mass_within(self._center, p.success_radius_m)
         center = self._center
-        if self.confidence >= p.declare_confidence and self.credible_radius <= p.declare_radius_m:
+        if self._sure(obs.t, center):
             self._declare_posterior(obs.t, center)
             return self._descend(obs, u_vec)
         if replan:
@@ -247,6 +249,18 @@ class Infotaxis(BaseStrategy):
         self.last_info = float(score[k]) if math.isfinite(score[k]) else 0.0
 
     # ------------------------------------------------------------------ declaration
+    def _sure(self, t: float, center: np.ndarray) -> bool:
+        """The declaration test: the confidence at least ``declare_confidence`` and the disc at most
+        ``declare_radius_m``, held for ``declare_hold_s`` [s] with the centre within
+        ``declare_radius_m`` of where it first was."""
+        p = self.p
+        if self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m:
+            self._sure_since = math.nan
+            return False
+        if math.isnan(self._sure_since) or float(np.hypot(*(center - self._sure_at))) > p.declare_radius_m:
+            self._sure_since, self._sure_at = t, center.copy()
+        return t - self._sure_since >= p.declare_hold_s - 1e-9
+
     def _declare_posterior(self, t: float, center: np.ndarray) -> None:
         self.declared = np.array([center[0], center[1], self.start[2] - self.post.mean_height()])
         self.t_declared = t

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes
+from mission.strategies.ste_history import ReadingHistory
+from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes, meander_of
 
 #: Smallest kernel standard deviation after resampling per dimension: position [m], height [m],
 #: log10 rate, direction [rad] (a collapsed cloud must still be able to move a little).
@@ -97,9 +98,11 @@ class SourcePosterior:
 
     def __init__(self, n_particles: int, mc: np.ndarray, tempering: float, jitter: float,
                  rng: np.random.Generator, meander_nodes_n: int = 7, window_s: float = 8.0,
-                 persistence: float = 0.5, rejuvenate: float = 0.0, corridor: tuple[float, float] = (25.0, 8.0)
-                 ) -> None:
+                 persistence: float = 0.5, rejuvenate: float = 0.0, corridor: tuple[float, float] = (25.0, 8.0),
+                 weigh_rejuvenated: bool = False) -> None:
         self.n = int(n_particles)
+        self.weigh_rejuvenated = bool(weigh_rejuvenated)
+        self.history = ReadingHistory()
         self.rejuvenate = float(rejuvenate)
         self.corridor = corridor
         self.mc = mc
@@ -178,6 +181,7 @@ class SourcePosterior:
             self.t_window = t
         cphi, sphi = math.cos(downwind_rad), math.sin(downwind_rad)
         self.main.add(self, px, py, pz, hit, cphi, sphi, u)
+        self.history.add(t, px, py, pz, hit, cphi, sphi, u, self.kappa, meander_of(self.mc))
         self.n_updates += 1
         if self.main.ess() < 0.5 * self.n:
             self._end_window()
@@ -200,16 +204,34 @@ class SourcePosterior:
         pn, pe, h, lq, delta = [x[idx] + max(s, f) * rng.standard_normal(n) for x, s, f in
                                 zip(cols, sig, floors, strict=True)]
         k = int(round(self.rejuvenate * n))
-        if k > 0:
-            self._rejuvenate(k, np.array([m.w @ m.pn, m.w @ m.pe]), pn, pe, h, lq, delta)
+        sel = self._rejuvenate(k, np.array([m.w @ m.pn, m.w @ m.pe]), pn, pe, h, lq, delta) if k > 0 else None
         box = self.prior
         h = _reflect(h, *box.h_range)
         lq = _reflect(lq, math.log10(box.q_range[0]), math.log10(box.q_range[1]))
         m.set(pn, pe, h, lq, delta, len(self.nodes))
+        if sel is not None and self.weigh_rejuvenated and len(self.history):
+            self._weigh(sel)
         self.n_resamples += 1
 
+    def _weigh(self, sel: np.ndarray) -> None:
+        """Weigh the redrawn particles ``sel`` against every reading so far (``ste_history``): each
+        enters with its history likelihood over the typical resampled particle's (the log-mean-exp
+        of as many resampled ones), at most 1 (a redrawn particle may come back as likely as the
+        particle set's, not push it out in one step)."""
+        m = self.main
+        rest = np.setdiff1d(np.arange(self.n), sel)
+        ref = self.rng.choice(rest, size=min(len(sel), len(rest)), replace=False)
+        idx = np.concatenate([sel, ref])
+        ll = self.history.log_likelihood((m.pn[idx], m.pe[idx], m.h[idx], m.q[idx], m.cd[idx], m.sd[idx]),
+                                         self.mc, self.nodes, self.log_wts, self.rho, self.window_s)
+        lr = ll[len(sel):]
+        typical = float(lr.max() + np.log(np.mean(np.exp(lr - lr.max()))))
+        m.logw[sel] = np.minimum(ll[:len(sel)] - typical, 0.0)
+        w = np.exp(m.logw - m.logw.max())
+        m.w = w / w.sum()
+
     def _rejuvenate(self, k: int, c: np.ndarray, pn: np.ndarray, pe: np.ndarray, h: np.ndarray, lq: np.ndarray,
-                    delta: np.ndarray) -> None:
+                    delta: np.ndarray) -> np.ndarray:
         """Redraw ``k`` of the resampled particles (in place) from the prior restricted to a corridor
         about the posterior mean ``c``: ``corridor[0]`` m up- and downwind, ``corridor[1]`` m either
         side (along the first wind's axis). A particle filter cannot get back a region it has lost
@@ -227,6 +249,7 @@ class SourcePosterior:
         lq[sel] = rng.uniform(math.log10(box.q_range[0]), math.log10(box.q_range[1]), k)
         if box.delta_sigma is not None:
             delta[sel] = rng.normal(0.0, box.delta_sigma, k)
+        return sel
 
     # ------------------------------------------------------------------ summaries
     def mean_ne(self) -> np.ndarray:
