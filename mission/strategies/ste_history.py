@@ -44,10 +44,11 @@ class ReadingHistory:
         self._rows.append((t, px, py, pz, 1.0 if hit else 0.0, cphi, sphi, u, kappa, meander_rad))
 
     def log_likelihood(self, particles: tuple[np.ndarray, ...], mc: np.ndarray, nodes: np.ndarray,
-                       log_wts: np.ndarray, rho: float, window_s: float) -> np.ndarray:
-        """Tempered log-likelihood of every stored reading for each particle (n, e, h, q, cos delta,
-        sin delta), the meander marginalized per window of ``window_s`` [s]."""
-        rows = np.array(self._rows, dtype=np.float64).reshape(-1, 10)
+                       log_wts: np.ndarray, rho: float, window_s: float, n_rows: int | None = None) -> np.ndarray:
+        """Tempered log-likelihood of the first ``n_rows`` (default all) stored readings for each
+        particle (n, e, h, q, cos delta, sin delta), the meander marginalized per window of
+        ``window_s`` [s] over ``nodes`` (Gauss-Hermite, log weights ``log_wts``)."""
+        rows = np.array(self._rows[:n_rows], dtype=np.float64).reshape(-1, 10)
         pn, pe, h, q, cd, sd = (np.ascontiguousarray(a, dtype=np.float64) for a in particles)
         return _replay(rows, pn, pe, h, q, cd, sd, mc.copy(), nodes, log_wts, rho, window_s)
 
