@@ -147,7 +147,7 @@ class Infotaxis(BaseStrategy):
             self._plan_due = True
         elif not replan:  # a tick without a posterior update or a move choice
             self.post.weigh_step(WEIGH_PER_TICK)
-        if self.post.version != self._disc_at:  # the posterior only changes with a bin (or a weighing)
+        if self.post.version != self._disc_at:  # the posterior only changes with a bin
             self._disc_at = self.post.version
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
             self.confidence = self.post.mass_within(self._center, p.success_radius_m)

@@ -112,7 +112,7 @@ class SourcePosterior:
         self._pending: np.ndarray | None = None  # redrawn particles still to weigh
         self._pending_rows = 0
         self._typical = math.nan
-        self.version = 0  # changes whenever the weights do
+        self.version = 0  # changes with every reading
         self.rejuvenate = float(rejuvenate)
         self.corridor = corridor
         self.mc = mc
@@ -232,7 +232,8 @@ class SourcePosterior:
         strategy's CPU budget). Each enters with its history likelihood over the typical resampled
         particle's (log-mean-exp of ``WEIGH_REFERENCE`` of them, weighed first), at most 1: a
         redrawn particle may come back as likely as the set's, not push it out in one step.
-        Returns True when the weights changed."""
+        Returns True when the weights changed (by at most the redrawn particles' share of the mass:
+        the summaries wait for the next reading, ``version`` is not changed)."""
         if self._pending is None:
             return False
         m = self.main
@@ -249,7 +250,6 @@ class SourcePosterior:
         m.logw[chunk] = np.minimum(self._replay(chunk) - self._typical, 0.0)
         w = np.exp(m.logw - m.logw.max())
         m.w = w / w.sum()
-        self.version += 1
         return True
 
     def _replay(self, idx: np.ndarray) -> np.ndarray:
