@@ -169,7 +169,7 @@ class InfotaxisParams(CommonParams):
                                      "spread (circular std over spread_tau_s) is at most this [deg]; above, the "
                                      "likelihood widens by the ratio f (0: never)")
     spread_tau_s: float = _p(15.0, 1.0, 600.0, "time constant of the direction spread [s]")
-    spread_tempering_power: float = _p(2.0, 0.0, 4.0, "tempering divided by f to this power")
+    spread_tempering_power: float = _p(1.0, 0.0, 4.0, "tempering divided by f to this power")
     spread_meander_power: float = _p(1.0, 0.0, 4.0, "meander direction sigma times f to this power")
     bin_s: float = _p(0.5, 0.05, 10.0, "readings are grouped into bins this long; a bin is a hit if any reading "
                       "in it is one (hits come in bursts) [s]")
@@ -211,7 +211,7 @@ class InfotaxisParams(CommonParams):
     declare_confidence: float = _p(0.9, 0.5, 0.9999, "declare when the posterior probability that the source "
                                    "lies within success_radius_m of the credible disc's centre reaches this")
     declare_radius_m: float = _p(3.0, 0.1, 100.0, "... and the credible region's radius is at most this [m]")
-    declare_hold_s: float = _p(0.0, 0.0, 600.0, "... both held this long, the centre within declare_radius_m of "
+    declare_hold_s: float = _p(5.0, 0.0, 600.0, "... both held this long, the centre within declare_radius_m of "
                                "where it was when they first held [s]")
     success_radius_m: float = _p(3.0, 0.1, 100.0, "confidence = posterior probability that the source lies "
                                  "within this distance of the declared point [m]")
