@@ -89,9 +89,9 @@ def test_the_widened_likelihood_is_less_sure_under_a_mismatch():
     assert widened < 0.5  # the widened one wants more before it is sure
 
 
-def _run(from_deg, seconds: float = 40.0) -> Infotaxis:
+def _run(from_deg, seconds: float = 40.0, reference_deg: float = 10.0) -> Infotaxis:
     s = Infotaxis()
-    s.reset(np.zeros(3), params_from_table("infotaxis", None), seed=3)
+    s.reset(np.zeros(3), params_from_table("infotaxis", {"infotaxis": {"spread_reference_deg": reference_deg}}), seed=3)
     for k in range(int(seconds * 10)):
         wn, we = _wind(from_deg(k * 0.1))
         wind = WindInfo(wind_ned=np.array([wn, we, 0.0]), cov_ned=None, upwind_rad=math.radians(from_deg(k * 0.1)))
@@ -102,8 +102,10 @@ def _run(from_deg, seconds: float = 40.0) -> Infotaxis:
 
 def test_infotaxis_widens_only_when_the_wind_wanders():
     p = params_from_table("infotaxis", None)
-    steady = _run(lambda t: 0.0)
+    steady = _run(lambda t: 0.0, reference_deg=10.0)
     assert steady.mismatch == 1.0 and steady.post.kappa == p.tempering
-    turning = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0)
+    turning = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0, reference_deg=10.0)
     assert turning.mismatch > 1.5
-    assert turning.post.kappa < 0.5 * p.tempering
+    assert turning.post.kappa < 0.7 * p.tempering
+    off = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0, reference_deg=0.0)  # the default: off
+    assert off.mismatch == 1.0 and off.post.kappa == p.tempering

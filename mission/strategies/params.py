@@ -165,9 +165,9 @@ class InfotaxisParams(CommonParams):
     tempering: float = _p(1.0, 0.01, 1.0, "exponent on each bin's likelihood: consecutive bins of a first-order "
                           "sensor in an intermittent plume are correlated, not independent")
     stability: str = _c("D", ("A", "B", "C", "D", "E", "F"), "Pasquill-Gifford class of the plume model")
-    spread_reference_deg: float = _p(10.0, 0.0, 180.0, "the model holds while the wind estimate's direction "
+    spread_reference_deg: float = _p(0.0, 0.0, 180.0, "the model holds while the wind estimate's direction "
                                      "spread (circular std over spread_tau_s) is at most this [deg]; above, the "
-                                     "likelihood widens by the ratio f (0: never)")
+                                     "likelihood widens by the ratio f (0: never, the default; 10 was tried)")
     spread_tau_s: float = _p(15.0, 1.0, 600.0, "time constant of the direction spread [s]")
     spread_tempering_power: float = _p(1.0, 0.0, 4.0, "tempering divided by f to this power")
     spread_meander_power: float = _p(1.0, 0.0, 4.0, "meander direction sigma times f to this power")
