@@ -23,8 +23,13 @@ reading is expected to tell the most about the source:
   from the posterior mean toward the mode (``SourcePosterior.credible_disc``). When the
   posterior probability that the source lies within ``success_radius_m`` (3 m) of that centre --
   the confidence -- reaches ``declare_confidence`` (0.9), and the disc's radius is at most
-  ``declare_radius_m``, the centre is declared with that radius and that confidence. The vehicle
-  flies over the point, descends and stops, as the other strategies do.
+  ``declare_radius_m``, both held for ``declare_hold_s`` (the posterior near a source swings; one
+  crossing is a weak reason to stop), the centre is declared with that radius and that
+  confidence. The vehicle flies over the point, descends and stops, as the other strategies do.
+- **Free ticks** (neither a posterior update nor a move choice) weigh the particles redrawn at the
+  last resampling against the reading history (``SourcePosterior.weigh_step``).
+- Optionally (``spread_reference_deg`` > 0, off by default) the likelihood widens with the
+  measured spread of the wind direction (``mission.strategies.ste_adapt``).
 
 Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any
 direction), the speed ``assumed_wind_m_s``; the hits themselves must then tell the direction.
