@@ -23,8 +23,13 @@ reading is expected to tell the most about the source:
   from the posterior mean toward the mode (``SourcePosterior.credible_disc``). When the
   posterior probability that the source lies within ``success_radius_m`` (3 m) of that centre --
   the confidence -- reaches ``declare_confidence`` (0.9), and the disc's radius is at most
-  ``declare_radius_m``, the centre is declared with that radius and that confidence. The vehicle
-  flies over the point, descends and stops, as the other strategies do.
+  ``declare_radius_m``, both held for ``declare_hold_s`` (the posterior near a source swings; one
+  crossing is a weak reason to stop), the centre is declared with that radius and that
+  confidence. The vehicle flies over the point, descends and stops, as the other strategies do.
+- **Free ticks** (neither a posterior update nor a move choice) weigh the particles redrawn at the
+  last resampling against the reading history (``SourcePosterior.weigh_step``).
+- Optionally (``spread_reference_deg`` > 0, off by default) the likelihood widens with the
+  measured spread of the wind direction (``mission.strategies.ste_adapt``).
 
 Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any
 direction), the speed ``assumed_wind_m_s``; the hits themselves must then tell the direction.
@@ -41,8 +46,9 @@ import numpy as np
 from mission.strategies.base import Observation, Setpoint, heading_of, heading_vec
 from mission.strategies.common import BaseStrategy
 from mission.strategies.params import InfotaxisParams
+from mission.strategies.ste_adapt import DirectionSpread, adapted_likelihood, mismatch_factor
 from mission.strategies.ste_filter import PriorBox, SourcePosterior
-from mission.strategies.ste_model import model_constants
+from mission.strategies.ste_model import model_constants, set_meander
 
 #: Time constant of the wind-speed average the plume model uses [s].
 SPEED_TAU_S = 10.0
@@ -51,6 +57,9 @@ ALTITUDE_TAU_S = 2.0
 #: Score bonus of continuing the current heading (fraction): keeps the vehicle from dithering
 #: between moves of nearly equal value.
 KEEP_HEADING_BONUS = 0.1
+#: Redrawn particles weighed against the reading history per free tick (``SourcePosterior.weigh_step``):
+#: about 3 ms of CPU with 600 readings (300 s).
+WEIGH_PER_TICK = 40
 
 
 class Infotaxis(BaseStrategy):
@@ -68,7 +77,7 @@ class Infotaxis(BaseStrategy):
         self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x1F07A5]))
         self.post = SourcePosterior(p.n_particles, mc, p.tempering, p.jitter, self.rng, int(p.meander_nodes),
                                     p.meander_window_s, math.exp(-p.bin_s / p.persistence_s), p.rejuvenate,
-                                    (p.rejuvenate_along_m, p.rejuvenate_across_m))
+                                    (p.rejuvenate_along_m, p.rejuvenate_across_m), bool(p.rejuvenate_weighed))
         self.speed = math.nan
         self.heading: float | None = None
         self.credible_radius = math.nan
@@ -81,6 +90,10 @@ class Infotaxis(BaseStrategy):
         self._plan_due = False
         self._disc_at = -1
         self._center = np.zeros(2)
+        self.spread = DirectionSpread(p.spread_tau_s, p.min_wind_m_s)
+        self.mismatch = 1.0
+        self._sure_since = math.nan
+        self._sure_at = np.zeros(2)
 
     # ------------------------------------------------------------------ wind
     def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
@@ -120,6 +133,8 @@ class Infotaxis(BaseStrategy):
         self.t_prev = obs.t
         hit = self.memory.add(obs)
         wind = self._plume_wind(obs, dt)
+        if obs.wind is not None:
+            self.spread.add(float(obs.wind.wind_ned[0]), float(obs.wind.wind_ned[1]), dt)
         u_vec = heading_vec(obs.wind.upwind_rad) if wind is not None and obs.wind is not None else heading_vec(0.0)
         if self.declared is not None:
             return self._descend(obs, u_vec)
@@ -135,12 +150,14 @@ class Infotaxis(BaseStrategy):
         self._plan_due = False
         if obs.chem_new and self._add_reading(obs, hit, downwind, speed):
             self._plan_due = True
-        if self.post.n_updates != self._disc_at:  # the posterior only changes with a bin
-            self._disc_at = self.post.n_updates
+        elif not replan:  # a tick without a posterior update or a move choice
+            self.post.weigh_step(WEIGH_PER_TICK)
+        if self.post.version != self._disc_at:  # the posterior only changes with a bin
+            self._disc_at = self.post.version
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
             self.confidence = self.post.mass_within(self._center, p.success_radius_m)
         center = self._center
-        if self.confidence >= p.declare_confidence and self.credible_radius <= p.declare_radius_m:
+        if self._sure(obs.t, center):
             self._declare_posterior(obs.t, center)
             return self._descend(obs, u_vec)
         if replan:
@@ -151,7 +168,7 @@ class Infotaxis(BaseStrategy):
         return Setpoint(position_ned=pos_sp, velocity_ned=np.array([v_ne[0], v_ne[1], 0.0]),
                         yaw_rad=heading_of(u_vec), state="search",
                         info={"credible_radius_m": self.credible_radius, "info_bits": self.last_info,
-                              "ess": self.post.ess()})
+                              "ess": self.post.ess(), "mismatch": self.mismatch})
 
     def _add_reading(self, obs: Observation, hit: bool, downwind: float, speed: float) -> bool:
         """Put a new reading into the current bin; a full bin updates the posterior: a hit if any
@@ -177,6 +194,7 @@ class Infotaxis(BaseStrategy):
             b[6] += 1.0
         if obs.t - b[0] < p.bin_s - 1e-6:
             return False
+        self._adapt()
         if b[6] > 0.0:
             self.post.update(obs.t, b[4] / b[6], b[5] / b[6], self.alt, True, downwind, speed)
             self.n_hits += 1
@@ -185,6 +203,16 @@ class Infotaxis(BaseStrategy):
             self.n_misses += 1
         b.clear()
         return True
+
+    def _adapt(self) -> None:
+        """Widen the likelihood by the measured direction spread (``ste_adapt``): the tempering
+        and the meander the next reading is weighed with."""
+        p = self.p
+        self.mismatch = mismatch_factor(self.spread.spread_rad, math.radians(p.spread_reference_deg))
+        kappa, meander = adapted_likelihood(self.mismatch, p.tempering, math.radians(p.meander_deg),
+                                            p.spread_tempering_power, p.spread_meander_power)
+        self.post.kappa = kappa
+        set_meander(self.post.mc, meander)
 
     def _speed(self, obs: Observation, center: np.ndarray) -> float:
         """Ground speed [m/s]: ``speed_m_s`` while the source is far or unknown, ``near_speed_m_s``
@@ -231,13 +259,26 @@ class Infotaxis(BaseStrategy):
         self.last_info = float(score[k]) if math.isfinite(score[k]) else 0.0
 
     # ------------------------------------------------------------------ declaration
+    def _sure(self, t: float, center: np.ndarray) -> bool:
+        """The declaration test: the confidence at least ``declare_confidence`` and the disc at most
+        ``declare_radius_m``, held for ``declare_hold_s`` [s] with the centre within
+        ``declare_radius_m`` of where it first was."""
+        p = self.p
+        if self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m:
+            self._sure_since = math.nan
+            return False
+        if math.isnan(self._sure_since) or float(np.hypot(*(center - self._sure_at))) > p.declare_radius_m:
+            self._sure_since, self._sure_at = t, center.copy()
+        return t - self._sure_since >= p.declare_hold_s - 1e-9
+
     def _declare_posterior(self, t: float, center: np.ndarray) -> None:
         self.declared = np.array([center[0], center[1], self.start[2] - self.post.mean_height()])
         self.t_declared = t
         self.diag = {"credible_radius_m": self.credible_radius, "n_hits": float(self.n_hits),
                      "n_misses": float(self.n_misses), "n_resamples": float(self.post.n_resamples),
                      "source_height_m": self.post.mean_height(),
-                     "release_g_s": float(10.0 ** (self.post.w @ self.post.lq))}
+                     "release_g_s": float(10.0 ** (self.post.w @ self.post.lq)),
+                     "direction_spread_deg": math.degrees(self.spread.spread_rad), "mismatch": self.mismatch}
 
     def _descend(self, obs: Observation, u: np.ndarray) -> Setpoint:
         sp = super()._descend(obs, u)

@@ -158,11 +158,19 @@ class InfotaxisParams(CommonParams):
     n_particles: int = _p(4000, 100, 200000, "particles of the source posterior")
     rejuvenate: float = _p(0.02, 0.0, 0.5, "share of the particles redrawn from the prior about the posterior "
                            "mean at every resampling (a lost region can come back)")
+    rejuvenate_weighed: int = _p(1, 0, 1, "1: a redrawn particle enters with its likelihood of every reading so far "
+                                 "(relative to the typical particle's, at most 1); 0: with the resampled weight")
     rejuvenate_along_m: float = _p(25.0, 0.0, 500.0, "rejuvenation corridor: this far up- and downwind [m]")
     rejuvenate_across_m: float = _p(8.0, 0.0, 500.0, "rejuvenation corridor: this far either side [m]")
     tempering: float = _p(1.0, 0.01, 1.0, "exponent on each bin's likelihood: consecutive bins of a first-order "
                           "sensor in an intermittent plume are correlated, not independent")
     stability: str = _c("D", ("A", "B", "C", "D", "E", "F"), "Pasquill-Gifford class of the plume model")
+    spread_reference_deg: float = _p(0.0, 0.0, 180.0, "the model holds while the wind estimate's direction "
+                                     "spread (circular std over spread_tau_s) is at most this [deg]; above, the "
+                                     "likelihood widens by the ratio f (0: never, the default; 10 was tried)")
+    spread_tau_s: float = _p(15.0, 1.0, 600.0, "time constant of the direction spread [s]")
+    spread_tempering_power: float = _p(1.0, 0.0, 4.0, "tempering divided by f to this power")
+    spread_meander_power: float = _p(1.0, 0.0, 4.0, "meander direction sigma times f to this power")
     bin_s: float = _p(0.5, 0.05, 10.0, "readings are grouped into bins this long; a bin is a hit if any reading "
                       "in it is one (hits come in bursts) [s]")
     persistence_s: float = _p(0.7, 0.01, 60.0, "correlation time of being inside the intermittent plume (hits "
@@ -203,6 +211,8 @@ class InfotaxisParams(CommonParams):
     declare_confidence: float = _p(0.9, 0.5, 0.9999, "declare when the posterior probability that the source "
                                    "lies within success_radius_m of the credible disc's centre reaches this")
     declare_radius_m: float = _p(3.0, 0.1, 100.0, "... and the credible region's radius is at most this [m]")
+    declare_hold_s: float = _p(5.0, 0.0, 600.0, "... both held this long, the centre within declare_radius_m of "
+                               "where it was when they first held [s]")
     success_radius_m: float = _p(3.0, 0.1, 100.0, "confidence = posterior probability that the source lies "
                                  "within this distance of the declared point [m]")
 

@@ -27,7 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes
+from mission.strategies.ste_history import ReadingHistory
+from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes, meander_of
+
+#: Resampled particles whose history likelihood sets the scale of the redrawn ones' (``weigh_step``).
+WEIGH_REFERENCE = 20
+#: Meander nodes of the history replay (3 instead of 7: log-likelihoods correlate 0.995, a third of the cost).
+REPLAY_NODES = 3
 
 #: Smallest kernel standard deviation after resampling per dimension: position [m], height [m],
 #: log10 rate, direction [rad] (a collapsed cloud must still be able to move a little).
@@ -97,9 +103,16 @@ class SourcePosterior:
 
     def __init__(self, n_particles: int, mc: np.ndarray, tempering: float, jitter: float,
                  rng: np.random.Generator, meander_nodes_n: int = 7, window_s: float = 8.0,
-                 persistence: float = 0.5, rejuvenate: float = 0.0, corridor: tuple[float, float] = (25.0, 8.0)
-                 ) -> None:
+                 persistence: float = 0.5, rejuvenate: float = 0.0, corridor: tuple[float, float] = (25.0, 8.0),
+                 weigh_rejuvenated: bool = False) -> None:
         self.n = int(n_particles)
+        self.weigh_rejuvenated = bool(weigh_rejuvenated)
+        self.history = ReadingHistory()
+        self.replay_nodes, self.replay_log_wts = meander_nodes(REPLAY_NODES)
+        self._pending: np.ndarray | None = None  # redrawn particles still to weigh
+        self._pending_rows = 0
+        self._typical = math.nan
+        self.version = 0  # changes with every reading
         self.rejuvenate = float(rejuvenate)
         self.corridor = corridor
         self.mc = mc
@@ -173,12 +186,16 @@ class SourcePosterior:
         their log-likelihoods are summed per meander node (``acc``) and the nodes marginalized
         when the weights are needed; at the end of a window the marginal is folded into the log
         weights and a new window starts."""
+        while self._pending is not None:  # normally done on the ticks between two readings
+            self.weigh_step(self.n)
         if math.isnan(self.t_window) or t - self.t_window >= self.window_s:
             self._end_window()
             self.t_window = t
         cphi, sphi = math.cos(downwind_rad), math.sin(downwind_rad)
         self.main.add(self, px, py, pz, hit, cphi, sphi, u)
+        self.history.add(t, px, py, pz, hit, cphi, sphi, u, self.kappa, meander_of(self.mc))
         self.n_updates += 1
+        self.version += 1
         if self.main.ess() < 0.5 * self.n:
             self._end_window()
             self.t_window = t
@@ -200,16 +217,50 @@ class SourcePosterior:
         pn, pe, h, lq, delta = [x[idx] + max(s, f) * rng.standard_normal(n) for x, s, f in
                                 zip(cols, sig, floors, strict=True)]
         k = int(round(self.rejuvenate * n))
-        if k > 0:
-            self._rejuvenate(k, np.array([m.w @ m.pn, m.w @ m.pe]), pn, pe, h, lq, delta)
+        sel = self._rejuvenate(k, np.array([m.w @ m.pn, m.w @ m.pe]), pn, pe, h, lq, delta) if k > 0 else None
         box = self.prior
         h = _reflect(h, *box.h_range)
         lq = _reflect(lq, math.log10(box.q_range[0]), math.log10(box.q_range[1]))
         m.set(pn, pe, h, lq, delta, len(self.nodes))
+        if sel is not None and self.weigh_rejuvenated and len(self.history):
+            self._pending, self._pending_rows, self._typical = sel, len(self.history), math.nan
         self.n_resamples += 1
 
+    def weigh_step(self, max_particles: int) -> bool:
+        """Weigh up to ``max_particles`` of the particles redrawn at the last resampling against
+        every reading before it (``ste_history``; spread over the ticks between two readings, the
+        strategy's CPU budget). Each enters with its history likelihood over the typical resampled
+        particle's (log-mean-exp of ``WEIGH_REFERENCE`` of them, weighed first), at most 1: a
+        redrawn particle may come back as likely as the set's, not push it out in one step.
+        Returns True when the weights changed (by at most the redrawn particles' share of the mass:
+        the summaries wait for the next reading, ``version`` is not changed)."""
+        if self._pending is None:
+            return False
+        m = self.main
+        if math.isnan(self._typical):
+            rest = np.setdiff1d(np.arange(self.n), self._pending)
+            ref = self.rng.choice(rest, size=min(WEIGH_REFERENCE, len(rest)), replace=False)
+            lr = self._replay(ref)
+            self._typical = float(lr.max() + np.log(np.mean(np.exp(lr - lr.max()))))
+            max_particles -= len(ref)
+            if max_particles <= 0:
+                return False
+        chunk, rest_sel = self._pending[:max_particles], self._pending[max_particles:]
+        self._pending = rest_sel if len(rest_sel) else None
+        m.logw[chunk] = np.minimum(self._replay(chunk) - self._typical, 0.0)
+        w = np.exp(m.logw - m.logw.max())
+        m.w = w / w.sum()
+        return True
+
+    def _replay(self, idx: np.ndarray) -> np.ndarray:
+        """History log-likelihood (readings before the last resampling) of the particles ``idx``."""
+        m = self.main
+        return self.history.log_likelihood((m.pn[idx], m.pe[idx], m.h[idx], m.q[idx], m.cd[idx], m.sd[idx]),
+                                           self.mc, self.replay_nodes, self.replay_log_wts, self.rho,
+                                           self.window_s, self._pending_rows)
+
     def _rejuvenate(self, k: int, c: np.ndarray, pn: np.ndarray, pe: np.ndarray, h: np.ndarray, lq: np.ndarray,
-                    delta: np.ndarray) -> None:
+                    delta: np.ndarray) -> np.ndarray:
         """Redraw ``k`` of the resampled particles (in place) from the prior restricted to a corridor
         about the posterior mean ``c``: ``corridor[0]`` m up- and downwind, ``corridor[1]`` m either
         side (along the first wind's axis). A particle filter cannot get back a region it has lost
@@ -227,6 +278,7 @@ class SourcePosterior:
         lq[sel] = rng.uniform(math.log10(box.q_range[0]), math.log10(box.q_range[1]), k)
         if box.delta_sigma is not None:
             delta[sel] = rng.normal(0.0, box.delta_sigma, k)
+        return sel
 
     # ------------------------------------------------------------------ summaries
     def mean_ne(self) -> np.ndarray:

@@ -63,6 +63,8 @@ STABILITY_CLASSES: tuple[str, ...] = tuple(BRIGGS_Y)
 # Layout of the model-constant vector the kernels take (one float64 array, numba-friendly).
 _AY, _BY, _PY, _AZ, _BZ, _PZ, _R02, _L, _CTHR, _EPS, _SUP2, _MF, _MTH2 = range(13)
 N_CONSTS = 13
+#: Index of the meander's squared direction sigma [rad^2] in the constant vector.
+MTH2 = _MTH2
 
 
 def model_constants(stability: str, source_radius_m: float, intermittency_length_m: float,
@@ -75,6 +77,16 @@ def model_constants(stability: str, source_radius_m: float, intermittency_length
     az, bz, pz = BRIGGS_Z[stability]
     return np.array([ay, by, py, az, bz, pz, source_radius_m**2, intermittency_length_m, detection_limit_mg_m3,
                      eps, sigma_up_m**2, meander_fraction, meander_rad**2], dtype=np.float64)
+
+
+def set_meander(mc: np.ndarray, meander_rad: float) -> None:
+    """Set the meander's direction sigma [rad] of the constant vector ``mc`` in place."""
+    mc[_MTH2] = meander_rad**2
+
+
+def meander_of(mc: np.ndarray) -> float:
+    """The meander's direction sigma [rad] of the constant vector ``mc``."""
+    return float(np.sqrt(mc[_MTH2]))
 
 
 def meander_nodes(n: int) -> tuple[np.ndarray, np.ndarray]:
