@@ -16,7 +16,8 @@ box: footprint distance horizontally, height above the roof vertically): "near" 
 "open" > ``--far`` m, "between" in the middle. Flights are pooled by sample count (RMSE = root of
 the sample-weighted mean square). Diagnostics per band: rms rate of change of the true mean wind
 along the track (what a random-walk wind state must follow), rms turbulence (instantaneous minus
-the mean field) and the mean true speed.
+the mean field), the mean true speed and the rms vertical component of the true mean wind (the
+default ``uncalibrated`` preset models the vertical wind as mean-reverting to zero, 3 s).
 
 Evaluation seeds start at 1000 (the search tables'); development seeds are 100-139.
 """
@@ -127,7 +128,8 @@ def bands(a: dict[str, np.ndarray], dist: np.ndarray, near_m: float, far_m: floa
 
 
 def band_figures(a: dict[str, np.ndarray], m: np.ndarray) -> tuple[Accuracy, np.ndarray]:
-    """The accuracy over mask ``m``, and the diagnostics' sums (n, sum |dU/dt|^2, sum |u'|^2, sum |U|)."""
+    """The accuracy over mask ``m``, and the diagnostics' sums (n, sum |dU/dt|^2, sum |u'|^2, sum |U|, sum W^2)
+    (U the true mean wind, W its vertical component, u' the turbulence)."""
     if not m.any():
         nan3 = (math.nan,) * 3
         acc = Accuracy(nan3, nan3, math.nan, math.nan, math.nan, math.nan, math.nan, nan3, None, math.nan, 0)
@@ -136,7 +138,9 @@ def band_figures(a: dict[str, np.ndarray], m: np.ndarray) -> tuple[Accuracy, np.
                        true_avg=moving_average(a["t"], a["true_block"], 1.0))  # fmt: skip
     dudt = np.gradient(a["mean"], a["t"], axis=0)
     turb = a["true"] - a["mean"]
-    diag = np.array([m.sum(), np.sum(dudt[m] ** 2), np.sum(turb[m] ** 2), np.sum(np.linalg.norm(a["mean"][m], axis=1))])
+    U = a["mean"][m]
+    diag = np.array([m.sum(), np.sum(dudt[m] ** 2), np.sum(turb[m] ** 2), np.sum(np.linalg.norm(U, axis=1)),
+                     np.sum(U[:, 2] ** 2)])  # fmt: skip
     return acc, diag
 
 
@@ -157,14 +161,14 @@ def pool(accs: list[Accuracy]) -> dict[str, Any]:
 
 def row(name: str, p: dict[str, Any], d: np.ndarray) -> str:
     if p["samples"] == 0:
-        return f"| {name} | 0 | - | - | - | - | - | - | - | - | - |"
+        return f"| {name} | 0 | - | - | - | - | - | - | - | - | - | - |"
     f3 = lambda v: " / ".join(f"{x:.2f}" for x in v)  # noqa: E731
     h = math.hypot(p["rmse_avg"][0], p["rmse_avg"][1])
     n = d[0]
     return (
         f"| {name} | {p['samples'] / 10:.0f} s | {f3(p['rmse'])} | {f3(p['rmse_avg'])} | {h:.2f} | {p['dir']:.1f} "
         f"| {p['cov1']:.3f} | {p['cov2']:.3f} ({f3(p['cov2_axis'])}) | {math.sqrt(d[1] / n):.2f} "
-        f"| {math.sqrt(d[2] / n):.2f} | {d[3] / n:.1f} |"
+        f"| {math.sqrt(d[2] / n):.2f} | {d[3] / n:.1f} | {math.sqrt(d[4] / n):.2f} |"
     )
 
 
@@ -181,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     sc = load_scenario(args.scenario)
     params_path = str(STRATEGY_FILES / f"{args.params}.toml") if args.params else None
     per: dict[str, list[Accuracy]] = {k: [] for k in ("all", "near", "between", "open")}
-    diag = {k: np.zeros(4) for k in per}
+    diag = {k: np.zeros(5) for k in per}
     last = args.seed0 + args.seeds - 1
     print(f"{args.scenario} / {args.strategy} {args.params} / estimated, seeds {args.seed0}..{last}")
     for seed in range(args.seed0, args.seed0 + args.seeds):
@@ -199,9 +203,10 @@ def main(argv: list[str] | None = None) -> int:
               f" ({time.process_time() - c0:.0f} s CPU)", flush=True)  # fmt: skip
     print(
         "| band | time | RMSE total N/E/D | RMSE 1-s N/E/D | horiz 1-s | dir 1-s (deg) | 1-sigma coverage "
-        "| 2-sigma coverage (N/E/D) | rms d(mean wind)/dt (m/s^2) | rms turbulence (m/s) | mean speed (m/s) |"
+        "| 2-sigma coverage (N/E/D) | rms d(mean wind)/dt (m/s^2) | rms turbulence (m/s) | mean speed (m/s) "
+        "| rms mean vertical (m/s) |"
     )
-    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|")
+    print("|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|")
     labels = {"all": "all", "near": f"near (<= {args.near:g} m)", "between": f"{args.near:g}-{args.far:g} m",
               "open": f"open (> {args.far:g} m)"}  # fmt: skip
     for k in per:
