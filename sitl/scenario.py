@@ -249,6 +249,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
     if "urban" in data:
         urban = parse_urban(data["urban"], wind, wind_model)
         wind_model, wind_options = "urban", (*wind_options, ("scene", urban))
+        _check_clear_of_buildings(urban, start, plume)
     vehicle = data.get("vehicle", "nasa-quad")
     if not isinstance(vehicle, str):
         raise ScenarioError("vehicle: expected a vehicle name ('nasa-quad') or a .toml path")
@@ -273,6 +274,21 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
         urban=urban,
         source_path=source,
     )
+
+
+def _check_clear_of_buildings(urban: UrbanScene, start: Start, plume: PlumeSetup | None) -> None:
+    """ScenarioError naming the field when the start or a plume source lies inside a building."""
+    from sitl.world.urban.geometry import BuildingArrays, building_at
+
+    arrays = BuildingArrays.from_buildings(urban.buildings)
+    points = [("start.position_ned", start.position_ned)]
+    if plume is not None:
+        points += [(f"plume.sources[{i}].position_ned", s.position_ned) for i, s in enumerate(plume.plume.sources)]
+    for name, p in points:
+        b = building_at(float(p[0]), float(p[1]), -float(p[2]), *arrays.args())
+        if b >= 0:
+            label = getattr(urban.buildings[b], "name", "") or f"urban.buildings[{b}]"
+            raise ScenarioError(f"{name} = {list(p)}: inside building {label!r}")
 
 
 def builtin_scenarios() -> list[str]:
