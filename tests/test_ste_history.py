@@ -65,3 +65,16 @@ def test_redrawn_particles_carry_the_history():
     w = post.w[sel] / post.w[resampled].max()
     assert np.all(w <= 1.0 + 1e-9)  # never heavier than a resampled particle
     assert np.mean(w[d > 10.0]) < 0.2 * np.mean(w[d < 3.0])  # ruled-out places stay out
+
+
+def test_a_free_tick_weighs_fewer_particles_as_the_history_grows():
+    """The weighing costs particles x readings: up to a 300 s mission's 600 readings a free tick weighs
+    ``WEIGH_PER_TICK`` particles, beyond that fewer, so the tick's CPU stays bounded however long
+    the mission (the same particles are weighed over more ticks)."""
+    from mission.strategies.infotaxis import WEIGH_BUDGET, WEIGH_PER_TICK, weigh_count
+
+    assert weigh_count(0) == weigh_count(600) == WEIGH_PER_TICK
+    assert weigh_count(1200) == WEIGH_PER_TICK // 2
+    for n in (601, 1000, 2400, 10_000):
+        assert 1 <= weigh_count(n) < WEIGH_PER_TICK and weigh_count(n) * n <= WEIGH_BUDGET
+    assert weigh_count(10**9) == 1  # never stalls

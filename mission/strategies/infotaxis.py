@@ -58,8 +58,17 @@ ALTITUDE_TAU_S = 2.0
 #: between moves of nearly equal value.
 KEEP_HEADING_BONUS = 0.1
 #: Redrawn particles weighed against the reading history per free tick (``SourcePosterior.weigh_step``):
-#: about 3 ms of CPU with 600 readings (300 s).
+#: about 3 ms of CPU with 600 readings (300 s). The cost is particles x readings, so past
+#: ``WEIGH_BUDGET`` readings-particles the tick weighs fewer: a mission longer than 300 s keeps the
+#: tick's CPU bounded and takes more ticks to weigh the same particles.
 WEIGH_PER_TICK = 40
+WEIGH_BUDGET = WEIGH_PER_TICK * 600
+
+
+def weigh_count(readings: int) -> int:
+    """Particles to weigh on a free tick with ``readings`` readings in the history: ``WEIGH_PER_TICK``,
+    fewer once particles x readings would pass ``WEIGH_BUDGET`` (at least 1)."""
+    return max(1, min(WEIGH_PER_TICK, WEIGH_BUDGET // max(1, readings)))
 
 
 class Infotaxis(BaseStrategy):
@@ -151,7 +160,7 @@ class Infotaxis(BaseStrategy):
         if obs.chem_new and self._add_reading(obs, hit, downwind, speed):
             self._plan_due = True
         elif not replan:  # a tick without a posterior update or a move choice
-            self.post.weigh_step(WEIGH_PER_TICK)
+            self.post.weigh_step(weigh_count(len(self.post.history)))
         if self.post.version != self._disc_at:  # the posterior only changes with a bin
             self._disc_at = self.post.version
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
