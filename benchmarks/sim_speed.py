@@ -6,7 +6,9 @@ Scenario 1 wind; goal: at least 100x real time. In the same run, RotorPy's Multi
 SE3Control on a hover trajectory in a constant wind at 100 Hz and 500 Hz (the peer), and the
 ratio. JIT compilation is excluded (a warm-up run first). Usage:
 
-    python benchmarks/sim_speed.py [--seconds 120] [--no-peer]
+    python benchmarks/sim_speed.py [--seconds 120] [--no-peer] [--scenario paper-s1]
+
+``--scenario paper-s4`` measures the urban world (gridded wind, puffs among the buildings).
 """
 
 from __future__ import annotations
@@ -49,11 +51,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=120.0)
     ap.add_argument("--peer-seconds", type=float, default=10.0)
     ap.add_argument("--no-peer", action="store_true")
+    ap.add_argument("--scenario", default="paper-s1", help="scenario to fly (default paper-s1)")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
-    ws = windseek_realtime_factor(args.seconds)
-    print(f"windseek  500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
+    ws = windseek_realtime_factor(args.seconds, args.scenario)
+    print(f"windseek  {args.scenario}, 500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
           f"(goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
     if args.no_peer:
         return
