@@ -22,7 +22,9 @@ only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to
   actuator outputs (ACTUATOR_OUTPUT_STATUS, SERVO_OUTPUT_RAW port 0) through ``motor_output``
   and the motor lag, advanced to every IMU sample (a new command acts from the next sample).
 - **Ground gate** (``ground_gate``): no samples while EXTENDED_SYS_STATE says on the ground or
-  landing; a filter that flew is replaced at the next lift-off.
+  landing, nor after the ground until the vehicle has climbed 0.5 m (the autopilot says "not
+  landed" while the rotors spin up on the ground); a filter that flew is replaced at the next
+  lift-off.
 - **Clock reset.** A reboot sets the autopilot's clock back to 0. Time stamps more than
   ``reset_jump_s`` behind the newest (``reset_confirm`` in a row; a single stale one is dropped
   and counted as ``clock_behind``), or SYSTEM_TIME's time_boot_ms going back, restart the filter
@@ -50,7 +52,7 @@ import numpy as np
 
 from estimator import mavlink_decode as dec
 from estimator.config import EstimatorConfig
-from estimator.ground_gate import GroundGate, withheld
+from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withheld
 from estimator.live_select import InputSelection
 from estimator.motor_output import SITL_ORDER, OutputMap
 from estimator.rpm_free import MotorCommandModel
@@ -138,6 +140,7 @@ class LiveCore:
         self._notes: list[str] = []
         self._noted_sources: set[tuple[int, int]] = set()
         self._gate = GroundGate()
+        self._liftoff = LiftOff()
         self._boot_ms: int | None = None
         self._behind = 0
         self.est = WindEstimator(cfg.vehicle, cfg.estimator)
@@ -246,7 +249,10 @@ class LiveCore:
             self.note(self.select.inputs_line() + f" ({group} now from {mtype})")
         if self.select.chosen.get(group) != mtype:
             return
-        action = self._gate.admit(self.paused())
+        paused = self.paused()
+        if self.config.ground_gate:
+            self._liftoff.update(self.t, self.landed_state == LANDED_ON_GROUND, self._height(mtype, msg))
+        action = self._gate.admit(paused or not self._liftoff.clear)
         if action == "pause":
             self._pending.clear()
             self._imu_sum.clear()
@@ -254,6 +260,16 @@ class LiveCore:
         if action == "restart":
             self._restart("lift-off")
         self._feed(group, mtype, msg, t if t is not None else self.t)
+
+    def _height(self, mtype: str, msg: Any) -> float | None:
+        """Height (m, up, any datum) from the chosen velocity message when it carries one."""
+        if mtype != self.select.chosen.get("velocity"):
+            return None
+        if mtype == "LOCAL_POSITION_NED":
+            return -float(msg.z)
+        if mtype == "GLOBAL_POSITION_INT":
+            return float(msg.relative_alt) * 1e-3
+        return None
 
     def _from_target(self, msg: Any, mtype: str, src: tuple[int, int]) -> bool:
         """Lock on to the first autopilot; count and ignore every other source."""

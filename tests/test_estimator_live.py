@@ -8,6 +8,8 @@ ArduPilot's IMU units, a non-quadrotor HEARTBEAT, and the ground gate.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from estimator_stream import Flight, autopilot_messages, over_the_wire, record
@@ -257,13 +259,44 @@ def test_a_hexarotor_heartbeat_is_a_model_mismatch(flight: Flight) -> None:
     assert flagged.model_note is not None and "PX4 SIH quadrotor" in flagged.model_note
 
 
+def _lowered(m: Any, dz: float = 1.0) -> Any:
+    """The message as if the vehicle were ``dz`` m lower (LOCAL_POSITION_NED; others unchanged)."""
+    if m.get_type() != "LOCAL_POSITION_NED":
+        return m
+    return mavlink.MAVLink_local_position_ned_message(m.time_boot_ms, m.x, m.y, m.z + dz, m.vx, m.vy, m.vz)
+
+
+@pytest.mark.parametrize("heights", [True, False])
+def test_not_landed_is_not_airborne_until_the_vehicle_has_climbed_clear(flight: Flight, heights: bool) -> None:
+    """PX4 says "not landed" (TAKEOFF) while the rotors spin up on the ground: no samples until the vehicle
+    has climbed 0.5 m above its height on the ground, or, in a stream without heights, for 5 s."""
+    base = [(t, m) for t, m in autopilot_messages(flight, velocity=heights)[:7500]
+            if m.get_type() != "EXTENDED_SYS_STATE"]  # fmt: skip
+
+    def seg(state: int, t0: float, t1: float, climbed: float = 0.0) -> list:
+        out = [(t, _lowered(m, -climbed)) for t, m in base if t0 <= t < t1]
+        out.insert(1 if t0 == 0.0 else 0, (t0, mavlink.MAVLink_extended_sys_state_message(0, state)))
+        return out
+
+    core = _core()
+    _run(core, over_the_wire([(1, 1, seg(1, 0.0, 2.0))], order="concat"))  # on the ground
+    _run(core, over_the_wire([(1, 1, seg(3, 2.0, 4.0))], order="concat"))  # TAKEOFF, still on the ground
+    assert core.est.accepted["imu"] == 0 and core.output() is None
+    _run(core, over_the_wire([(1, 1, seg(3, 4.0, 5.0, climbed=0.4))], order="concat"))
+    assert core.est.accepted["imu"] == 0  # 0.4 m is not clear
+    _run(core, over_the_wire([(1, 1, seg(3, 5.0, 6.9, climbed=0.6))], order="concat"))
+    assert (core.est.accepted["imu"] > 0) is heights  # 0.6 m is; without heights 4.9 s is not 5
+    _run(core, over_the_wire([(1, 1, seg(2, 6.9, 9.0, climbed=0.6))], order="concat"))
+    assert core.est.accepted["imu"] > 0 and core.output() is not None and core.restarts == 0
+
+
 def test_ground_gate_pauses_and_replaces_a_flown_filter_at_the_next_lift_off(flight: Flight) -> None:
     """EXTENDED_SYS_STATE on the ground or landing withholds the inputs; a filter that flew is replaced at
     the next lift-off (one that never flew is not) and the chosen inputs carry over."""
     base = [(t, m) for t, m in autopilot_messages(flight)[:6000] if m.get_type() != "EXTENDED_SYS_STATE"]
 
     def landed(state: int, t0: float, t1: float) -> list:
-        seg = [(t, m) for t, m in base if t0 <= t < t1]
+        seg = [(t, _lowered(m) if state == 1 else m) for t, m in base if t0 <= t < t1]  # the ground 1 m down
         seg.insert(1 if t0 == 0.0 else 0, (t0, mavlink.MAVLink_extended_sys_state_message(0, state)))
         return seg  # (at t = 0 after the HEARTBEAT the core locks on to)
 

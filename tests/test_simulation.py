@@ -63,12 +63,15 @@ def test_rests_on_ground_takes_off_lands_and_disarms():
     sim.run(1.0)  # armed idle: still on the ground
     assert sim.on_ground
     assert sim.fc.start_mission(0)[0]
-    states = set()
-    for _ in range(400):
-        sim.run(0.1)
+    states, taking_off_on_ground = set(), 0
+    for _ in range(4000):
+        sim.run(0.01)  # finer than the 80 ms between spin-up and lift-off
         states.add(sim.fc.landed_state)
+        taking_off_on_ground += sim.fc.landed_state == LandedState.TAKEOFF and sim.on_ground
         if not sim.fc.armed:
             break
+    # as PX4 (TAKEOFF only once the land detector says not landed): never while touching the ground
+    assert taking_off_on_ground == 0
     assert LandedState.TAKEOFF in states and LandedState.IN_AIR in states and LandedState.LANDING in states
     assert not sim.fc.armed and sim.on_ground and not sim.crashed
     assert np.hypot(sim.position[0] - 3.0, sim.position[1]) < 1.0  # landed at the last waypoint

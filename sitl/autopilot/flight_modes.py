@@ -341,7 +341,9 @@ class FlightController(MissionExecution):
             flags = F_IDLE
             self.landed_state = LandedState.ON_GROUND
         elif taking_off:
-            self.landed_state = LandedState.TAKEOFF
+            # As PX4's EXTENDED_SYS_STATE stream: TAKEOFF only once the land detector says not
+            # landed; here, once the ground contact has ended.
+            self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.TAKEOFF
         else:
             self.landed_state = LandedState.ON_GROUND if on_ground else LandedState.IN_AIR
         sp[SP_FLAGS] = flags
