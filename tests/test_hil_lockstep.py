@@ -156,10 +156,11 @@ def test_garbage_from_px4_is_counted_and_dropped() -> None:
         t = b.world.t
         wait_for(lambda: b.world.t > t + 0.5, what="lockstep going on")
         assert runner.counters["lockstep_timeouts"] == 0
-        # A partial frame header swallows the start of the next answer: that step costs one bounded wait.
+        # A partial frame header would swallow the start of the next answer (pymavlink trusts its length):
+        # the link parses the swallowed bytes again (wire.resync), so no answer is lost, no wait is spent.
         px4.sock.sendall(b"\xfd\x30\x00")
         t = b.world.t
-        wait_for(lambda: b.world.t > t + 0.5, what="lockstep going on after the lost answer")
+        wait_for(lambda: b.world.t > t + 0.5, what="lockstep going on after the partial header")
         px4.close()
-    assert runner.link.counters["rx_bad"] >= 1
-    assert runner.counters["lockstep_timeouts"] <= 1
+    assert runner.link.counters["rx_bad"] >= 2
+    assert runner.counters["lockstep_timeouts"] == 0

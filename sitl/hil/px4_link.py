@@ -25,6 +25,7 @@ from typing import Any
 from sitl.hil.frames import FrameEncoder, split_controls
 from sitl.link.transports import SerialTransport
 from wire.dialect import mavlink
+from wire.resync import parse_stream
 
 #: Wall seconds a TCP send may block on a peer that does not read.
 SEND_TIMEOUT_S = 2.0
@@ -106,7 +107,7 @@ class SimLink:
                 self.counters["rx_messages"] += len(good)
                 return good
         try:
-            msgs = self._parser.parse_buffer(data) or []
+            msgs = parse_stream(self._parser, data)
         except Exception:  # noqa: BLE001 - the parser must never take the link down
             self.counters["rx_bad"] += 1
             self._parser = self._new_parser()

@@ -27,6 +27,7 @@ from typing import Any
 from sitl.link.transports import TcpServerTransport, Transport, UdpTransport
 from wire import signing
 from wire.dialect import mavlink
+from wire.resync import parse_stream
 
 log = logging.getLogger(__name__)
 
@@ -182,7 +183,7 @@ class Endpoint:
         """Parse bytes that arrived on a link and dispatch the messages."""
         self.counters["rx_bytes"] += len(data)
         try:
-            msgs = lk.parser.parse_buffer(data) or []
+            msgs = parse_stream(lk.parser, data)
         except Exception:  # the parser must never take the endpoint down
             log.debug("parser error on %s", lk.name, exc_info=True)
             self.counters["rx_bad"] += 1
