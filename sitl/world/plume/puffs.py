@@ -22,12 +22,34 @@ from sitl.world.plume.meander import (
     frozen_turbulence_variances,
     meander_at,
 )
-from sitl.world.urban.geometry import reflect_many
+from sitl.world.urban.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
 # The puff update and the concentration sum are the plume's hot loops (called at the plume
 # and sensor rates inside a simulator that must run >= 100x real time): fused numba loops,
 # no (K,M) or (N,K) temporaries. Per-puff arithmetic is the formula of the docstrings above.
+
+
+@njit(cache=True)
+def _reflect_puffs(
+    pos: np.ndarray, before: np.ndarray, verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray,
+    bbox: np.ndarray,
+) -> int:  # fmt: skip
+    """In place: puffs ``pos`` (N, 3: north, east m, unfolded altitude m up; the physical height is
+    its absolute value) whose step from ``before`` (N, 3 NED m) ended inside a building, reflected
+    out of it (:func:`reflect_point`), with the reflected height as their new altitude. Returns how
+    many were inside. One pass in compiled code: the plume does this at every update."""
+    moved = 0
+    for k in range(pos.shape[0]):
+        px, py, ph = pos[k, 0], pos[k, 1], abs(pos[k, 2])
+        if building_at(px, py, ph, verts, offsets, heights, bbox) < 0:
+            continue
+        moved += 1
+        rx, ry, rh = reflect_point(before[k, 0], before[k, 1], -before[k, 2], px, py, ph, verts, offsets, heights, bbox)
+        if rx != px or ry != py or rh != ph:
+            pos[k, 0], pos[k, 1], pos[k, 2] = rx, ry, rh
+    return moved
+
 
 @njit(cache=True)
 def _advance_puffs(
@@ -291,13 +313,7 @@ class PuffPlume:
     def _reflect(self, before: np.ndarray) -> None:
         """Puffs whose step ended inside a building mirrored out of it (off the wall or roof they
         crossed); they continue from there with their altitude unfolded afresh."""
-        after = np.column_stack([self._pos[:, :2], -np.abs(self._pos[:, 2])])
-        out, moved = reflect_many(np.ascontiguousarray(after), np.ascontiguousarray(before), *self._obstacles)
-        if moved:
-            self.reflected += int(moved)
-            changed = np.any(out != after, axis=1)
-            self._pos[changed, 0:2] = out[changed, 0:2]
-            self._pos[changed, 2] = -out[changed, 2]
+        self.reflected += _reflect_puffs(self._pos, before, *self._obstacles)
 
     def _keep(self, mask: np.ndarray | slice) -> None:
         self._pos = self._pos[mask]

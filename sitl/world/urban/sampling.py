@@ -58,6 +58,63 @@ def _log_weights(h: float, fk: float, nk: int, dz: float, wp: np.ndarray) -> tup
     return k0, k1, (1.0 - tk) * u_h / u0, tk * u_h / u1  # clamped outside: tk is 0 or 1
 
 
+@njit(cache=True, inline="always")
+def _in_grid(fx: float, fy: float, fh: float, h: float, nx: int, ny: int, nz: int) -> bool:
+    """True when fractional indices (faces: fx in [0, nx], fy, fh) fall in the grid (h >= 0)."""
+    return not (fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0)
+
+
+@njit(cache=True, inline="always")
+def mean_in_grid(
+    fx: float, fy: float, fh: float, h: float, dz: float, u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray,
+    wp: np.ndarray,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Mean air-mass velocity (north, east, down) m/s at fractional face indices inside the grid."""
+    nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
+    # Column indices shared by the three staggered grids: faces (fx, fy), centres (fx/fy - 0.5).
+    if_0, if_1, tif = _level(fx, nx + 1)
+    ic_0, ic_1, tic = _level(fx - 0.5, nx)
+    jf_0, jf_1, tjf = _level(fy, ny + 1)
+    jc_0, jc_1, tjc = _level(fy - 0.5, ny)
+    k0, k1, w0, w1 = _log_weights(h, fh - 0.5, nz, dz, wp)
+    un = w0 * _bilinear(u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k0) + w1 * _bilinear(
+        u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k1
+    )
+    ve = w0 * _bilinear(v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k0) + w1 * _bilinear(
+        v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k1
+    )
+    kw0, kw1, tkw = _level(fh, nz + 1)
+    wd = (1.0 - tkw) * _bilinear(w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw0) + tkw * _bilinear(
+        w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw1
+    )
+    return un, ve, wd
+
+
+@njit(cache=True, inline="always")
+def urban_sample(
+    x: float, y: float, z: float, gp: np.ndarray, u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray,
+    wp: np.ndarray, tm: np.ndarray, verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray,
+    bbox: np.ndarray,
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """(north, east, down) mean air-mass velocity m/s and the turbulence multiplier at NED point
+    (x, y, z) m in one pass: one building test and one grid look-up for both (the plume samples
+    every puff this way; :func:`urban_wind_at` and :func:`urban_multiplier_at` are its halves).
+    Inside a building: zeros; outside the grid: the upstream log profile and multiplier 1;
+    a non-finite point: NaNs."""
+    h = -z
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return math.nan, math.nan, math.nan, math.nan
+    if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+        return 0.0, 0.0, 0.0, 0.0
+    nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
+    fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
+    if not _in_grid(fx, fy, fh, h, nx, ny, nz):
+        sp = log_speed(h, wp[0], wp[1], wp[2], wp[3])
+        return sp * wp[4], sp * wp[5], 0.0, 1.0
+    un, ve, wd = mean_in_grid(fx, fy, fh, h, gp[4], u_n, v_e, w_d, wp)
+    return un, ve, wd, _trilinear(tm, fx - 0.5, fy - 0.5, fh - 0.5)
+
+
 @njit(cache=True)
 def urban_wind_at(
     x: float, y: float, z: float, gp: np.ndarray, u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray,
@@ -75,26 +132,10 @@ def urban_wind_at(
         return 0.0, 0.0, 0.0
     nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
     fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
-    if fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0:
+    if not _in_grid(fx, fy, fh, h, nx, ny, nz):
         sp = log_speed(h, wp[0], wp[1], wp[2], wp[3])
         return sp * wp[4], sp * wp[5], 0.0
-    # Column indices shared by the three staggered grids: faces (fx, fy), centres (fx/fy - 0.5).
-    if_0, if_1, tif = _level(fx, nx + 1)
-    ic_0, ic_1, tic = _level(fx - 0.5, nx)
-    jf_0, jf_1, tjf = _level(fy, ny + 1)
-    jc_0, jc_1, tjc = _level(fy - 0.5, ny)
-    k0, k1, w0, w1 = _log_weights(h, fh - 0.5, nz, gp[4], wp)
-    un = w0 * _bilinear(u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k0) + w1 * _bilinear(
-        u_n, if_0, if_1, tif, jc_0, jc_1, tjc, k1
-    )
-    ve = w0 * _bilinear(v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k0) + w1 * _bilinear(
-        v_e, ic_0, ic_1, tic, jf_0, jf_1, tjf, k1
-    )
-    kw0, kw1, tkw = _level(fh, nz + 1)
-    wd = (1.0 - tkw) * _bilinear(w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw0) + tkw * _bilinear(
-        w_d, ic_0, ic_1, tic, jc_0, jc_1, tjc, kw1
-    )
-    return un, ve, wd
+    return mean_in_grid(fx, fy, fh, h, gp[4], u_n, v_e, w_d, wp)
 
 
 @njit(cache=True)

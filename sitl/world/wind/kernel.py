@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from sitl.world.urban.sampling import urban_multiplier_at, urban_wind_at
+from sitl.world.urban.sampling import urban_sample, urban_wind_at
 
 
 class WindKernel(NamedTuple):
@@ -144,7 +144,7 @@ def open_wind(
     return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def urban_wind(
     t: float, x: float, y: float, z: float, turb_on: bool, taylor: bool, turb_rate: float, uvw: np.ndarray,
     ugp: np.ndarray, u_n: np.ndarray, v_e: np.ndarray, w_d: np.ndarray, uwp: np.ndarray, tm: np.ndarray,
@@ -153,11 +153,11 @@ def urban_wind(
     """Urban air-mass velocity (m/s, NED) at NED (x, y, z) m, time t s: the solved field
     (:mod:`sitl.world.urban`) and the turbulence scaled by its multiplier at the point (stronger in
     wakes and canyons, weaker in sheltered air, none inside a building)."""
-    mn, me, md = urban_wind_at(x, y, z, ugp, u_n, v_e, w_d, uwp, verts, offsets, heights, bbox)
     if mean_only or not turb_on:
-        return mn, me, md
+        return urban_wind_at(x, y, z, ugp, u_n, v_e, w_d, uwp, verts, offsets, heights, bbox)
+    # The mean and the multiplier in one pass (one building test): a third of a puff's sample.
+    mn, me, md, k = urban_sample(x, y, z, ugp, u_n, v_e, w_d, uwp, tm, verts, offsets, heights, bbox)
     up, vp, wp, en, ee = _turbulence(t, x, y, uwp[0] * uwp[4], uwp[0] * uwp[5], taylor, turb_rate, uvw)
-    k = urban_multiplier_at(x, y, z, ugp, tm, verts, offsets, heights, bbox)
     up, vp, wp = k * up, k * vp, k * wp
     return mn + up * en - vp * ee, me + up * ee + vp * en, md + wp
 
