@@ -8,7 +8,8 @@ ratio. JIT compilation is excluded (a warm-up run first). Usage:
 
     python benchmarks/sim_speed.py [--seconds 120] [--no-peer] [--scenario paper-s1]
 
-``--scenario paper-s4`` measures the urban world (gridded wind, puffs among the buildings).
+``--scenario paper-s4 --reference open-field`` measures the urban world (gridded wind, puffs among
+the buildings) and, in the same run, the same vehicle and plume in open terrain.
 """
 
 from __future__ import annotations
@@ -52,12 +53,19 @@ def main() -> None:
     ap.add_argument("--peer-seconds", type=float, default=10.0)
     ap.add_argument("--no-peer", action="store_true")
     ap.add_argument("--scenario", default="paper-s1", help="scenario to fly (default paper-s1)")
+    ap.add_argument("--reference", default=None,
+                    help="a second scenario measured in the same run, and the ratio (e.g. open-field for paper-s4)")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
     ws = windseek_realtime_factor(args.seconds, args.scenario)
     print(f"windseek  {args.scenario}, 500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
           f"(goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
+    if args.reference:
+        ref = windseek_realtime_factor(args.seconds, args.reference)
+        print(f"windseek  {args.reference} (reference, same run): {ref['realtime_factor']:8.1f} x real time; "
+              f"per CPU second: {ref['realtime_factor_cpu']:.1f} -> {args.scenario} / {args.reference} = "
+              f"{ws['realtime_factor_cpu'] / ref['realtime_factor_cpu']:.2f} (CPU)")
     if args.no_peer:
         return
     from rotorpy_peer import rotorpy_realtime_factor
