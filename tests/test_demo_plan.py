@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from mission.runners.fence import SiteBuildings
-from windseek.cmd_demo import _plan, add_parser, mission_argv
+from windseek.cmd_demo import _plan, add_parser, mission_argv, rrd_argv
 
 
 def _args(tmp_path: Path, *argv: str) -> argparse.Namespace:
@@ -51,3 +51,32 @@ def test_a_fence_away_from_the_scene_does_not_empty_the_map(tmp_path: Path) -> N
         rec.geofence((190.0, -120.0, -30.0), (400.0, 180.0, 0.0))  # overlapping: the map is cut to it
         n0, n1, e0, e1 = rec.scene_bounds()
         assert n1 == 400.0 and n0 == inside[0] and e0 == inside[2]
+
+
+@pytest.mark.parametrize(("strategy", "alt"), [("zigzag", "3"), ("infotaxis", "2")])
+def test_the_sitl_records_the_urban_wind_slice_at_the_missions_search_altitude(
+    tmp_path: Path, strategy: str, alt: str
+) -> None:
+    """The SITL knows only the scenario's take-off altitude (5 m in paper-s4); the demo tells it the
+    mission's search altitude, and the recorded wind field's slice is drawn there."""
+    from recording.read import RrdLog
+    from sitl.link.runner import SitlLink
+    from sitl.link.wire import WireRecorder
+    from sitl.scenario import load_scenario
+    from sitl.simulation import Simulation
+    from windseek import cmd_sitl
+
+    pl = _plan(_args(tmp_path, "--scenario", "paper-s4", "--strategy", strategy))
+    argv = rrd_argv(pl)
+    assert argv[argv.index("--rrd-altitude") + 1] == alt
+    ap = argparse.ArgumentParser()
+    cmd_sitl.add_parser(ap.add_subparsers())
+    ns = ap.parse_args(["sitl", "paper-s4", *argv])
+    assert ns.rrd_altitude == float(alt)
+    with pytest.raises(SystemExit):
+        ap.parse_args(["sitl", "paper-s4", "--rrd-altitude", "-1"])  # one line, not a traceback
+    path = tmp_path / "s.rrd"
+    link = SitlLink(Simulation(load_scenario("paper-s4"), seed=1, autostart_route=False), [])
+    WireRecorder(link, path, strategy=strategy, field_altitude_m=ns.rrd_altitude).close()
+    _, labels = RrdLog(path).column("map/wind_field/colorbar/unit", "Points2D:labels")
+    assert list(labels[-1]) == [f"m/s at {alt} m"]

@@ -90,11 +90,13 @@ class _Plan:
     truth_path: Path
     fence: str
     buildings: bool  # the scenario has [urban] buildings: the mission flies among them (--buildings)
+    search_altitude_m: float  # the mission's search altitude (its strategy's default, within the limits)
 
 
 def _plan(args: argparse.Namespace) -> _Plan:
     from mission.safety import SafetyLimits
     from mission.strategies import STRATEGIES
+    from mission.strategies.params import load_params
     from sitl.scenario import load_scenario
 
     if args.strategy not in STRATEGIES:
@@ -117,7 +119,18 @@ def _plan(args: argparse.Namespace) -> _Plan:
         fence=",".join(f"{h + v:g}" for h, v in zip((*sc.start.position_ned, *sc.start.position_ned),
                                                      (*limits.box_min_ned, *limits.box_max_ned), strict=True)),
         buildings=sc.urban is not None and bool(sc.urban.buildings),
+        search_altitude_m=min(max(load_params(args.strategy).altitude_m, limits.min_altitude_m),
+                              limits.max_altitude_m),
     )  # fmt: skip
+
+
+def rrd_argv(pl: _Plan) -> list[str]:
+    """The SITL's recording arguments in a demo: the file, the strategy's name and the height of the
+    urban wind field's slice, the mission's search altitude (the SITL alone knows only the scenario's
+    take-off altitude)."""
+    if "rrd" not in pl.files:
+        return []
+    return ["--rrd", str(pl.files["rrd"]), "--rrd-strategy", pl.strategy, "--rrd-altitude", f"{pl.search_altitude_m:g}"]
 
 
 def mission_argv(pl: _Plan, port: int) -> list[str]:
@@ -155,7 +168,7 @@ class _Demo:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
         pl, obs = self.plan, self.obs
-        rrd_args = ["--rrd", str(pl.files["rrd"]), "--rrd-strategy", pl.strategy] if "rrd" in pl.files else []
+        rrd_args = rrd_argv(pl)
         sitl = self._start("sitl", ["sitl", pl.scenario, "--speed", f"{pl.speed:g}", "--seed", str(pl.seed),
                                     "--udp-bind", "127.0.0.1:0", "--udp", f"127.0.0.1:{self.p_est}",
                                     f"127.0.0.1:{self.p_mis}", f"127.0.0.1:{obs.port}", "--forward",

@@ -43,6 +43,17 @@ def _speed(text: str) -> float:
     return v
 
 
+def _altitude(text: str) -> float:
+    """A height above the ground > 0 m (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (m)") from None
+    if not (math.isfinite(v) and v > 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r}: must be a finite height > 0 m")
+    return v
+
+
 def _box(text: str) -> tuple[list[float], list[float]]:
     """``N,E,D,N,E,D`` (two opposite corners of a box, m NED) as (min corner, max corner)."""
     try:
@@ -88,6 +99,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--rrd", metavar="PATH", help="write a Rerun recording: the simulation's truth plus the "
                    "WIND_COV estimates, mission status and declared source that arrive on the wire")
     g.add_argument("--rrd-strategy", metavar="NAME", default=None, help="strategy name stored in the recording")
+    g.add_argument("--rrd-altitude", metavar="M", default=None, type=_altitude,
+                   help="height of the recorded urban wind field's horizontal slice, m above the ground "
+                   "(default: the scenario's take-off altitude; windseek demo passes the mission's search altitude)")
     g.add_argument("--geofence", metavar="N,E,D,N,E,D", default=None, type=_box,
                    help="geofence box corners (m, NED) drawn in the recording (the mission's box)")
     g.add_argument("--forward", action="store_true", help="forward frames not addressed to the autopilot to the "
@@ -159,7 +173,8 @@ def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
     if getattr(args, "forward", False):
         Forwarder(link)
     if getattr(args, "rrd", None):
-        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=args.geofence))
+        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=args.geofence,
+                                field_altitude_m=getattr(args, "rrd_altitude", None)))
     if getattr(args, "exit_summary", None):
         out.append(TruthSummary(link, args.exit_summary))
     return out

@@ -259,13 +259,15 @@ class WireRecorder:
         path: the ``.rrd`` file.
         strategy: recording label (the mission's strategy, if known).
         geofence_ned: (min corner, max corner) of the mission's geofence box [m, NED], drawn static.
+        field_altitude_m: height of the urban wind field's horizontal slice [m above the ground]
+            (None: the scenario's take-off altitude).
         filter_cutoff_hz: cutoff of the first-order low-pass giving the "filtered" wind direction
             from the received estimates [Hz].
     """
 
     def __init__(self, link: SitlLink, path: Path | str, strategy: str | None = None,
                  geofence_ned: tuple[list[float], list[float]] | None = None,
-                 filter_cutoff_hz: float = 0.05) -> None:  # fmt: skip
+                 filter_cutoff_hz: float = 0.05, field_altitude_m: float | None = None) -> None:  # fmt: skip
         from recording.recorder import RunRecorder
         from recording.sim_hook import record_simulation
         from recording.stream import CpuMeter
@@ -286,7 +288,7 @@ class WireRecorder:
             self.rec.geofence(*geofence_ned)
         # Metered: an urban scenario's buildings and wind field are logged here, once.
         self.meter(lambda: record_simulation(sim, self.rec, vehicle_hz=5.0, series_hz=5.0, slice_hz=0.2,
-                                             meter=self.meter))  # fmt: skip
+                                             field_altitude_m=field_altitude_m, meter=self.meter))  # fmt: skip
         self.tally = FlightTally([] if sim.chem is None else sim.chem.sources_ned)
         # The path (t, n, e, d) at every mode tick of the last 60 s: an estimate is scored against the
         # wind field at its nearest tick's time and position (estimates arrive late). The field is
