@@ -189,8 +189,10 @@ def main(argv: list[str] | None = None) -> int:
         f"windseek wind UKF, seeds {seeds[0]}..{seeds[-1]}, {args.duration:.0f} s; RMSE m/s N/E/D;"
         " 1-s = trailing 1-s averages"
     )
-    hdr = ("case  preset        RMSE total N/E/D     RMSE 1-s N/E/D       h 1-s  dir deg  cover  N/E/D cover"
-           "        reconv s    us")
+    hdr = (
+        "case  preset        RMSE total N/E/D     RMSE 1-s N/E/D       h 1-s  dir deg  cover  N/E/D cover"
+        "        reconv s    us"
+    )
     print(hdr)
     results = {}
     for case in args.cases.split(","):
@@ -231,14 +233,18 @@ def main(argv: list[str] | None = None) -> int:
     print("estimator           RMSE total N/E/D     RMSE 1-s N/E/D       h 1-s  dir deg  cover  reconv s (mean)")
     if "s1" in results:
         r = results["s1"]
-        print(f"windseek UKF        {np.array2string(r['rmse'], precision=3):20s} "
-              f"{np.array2string(r['rmse_avg'], precision=3):20s} {r['h_avg']:.3f}  {r['dir']:6.2f}  {r['cov']:.3f}"
-              f"  {r['rec_mean']}")
+        print(
+            f"windseek UKF        {np.array2string(r['rmse'], precision=3):20s} "
+            f"{np.array2string(r['rmse_avg'], precision=3):20s} {r['h_avg']:.3f}  {r['dir']:6.2f}  {r['cov']:.3f}"
+            f"  {r['rec_mean']}"
+        )
     rec = [x for x in rp["rec"] if x is not None]
     rec_s = f"{np.mean(rec):.2f}" if rec and all(math.isfinite(x) for x in rec) else f"{rec}"
-    print(f"RotorPy WindUKF     {np.array2string(rp['rmse'], precision=3):20s} "
-          f"{np.array2string(rp['rmse_avg'], precision=3):20s} {rp['h_avg']:.3f}  {rp['dir']:6.2f}  {rp['cov']:.3f}"
-          f"  {rec_s}")
+    print(
+        f"RotorPy WindUKF     {np.array2string(rp['rmse'], precision=3):20s} "
+        f"{np.array2string(rp['rmse_avg'], precision=3):20s} {rp['h_avg']:.3f}  {rp['dir']:6.2f}  {rp['cov']:.3f}"
+        f"  {rec_s}"
+    )
     return 0
 
 
