@@ -1,5 +1,6 @@
 """Stream parsing with resynchronisation (wire.resync): a stray start marker or a corrupt frame no
-longer swallows the good frames after it; hostile bytes cost bounded work."""
+longer swallows the good frames after it, in the SITL's parsers and in a ``mavutil`` connection on a
+serial port (the estimator's); hostile bytes cost bounded work."""
 
 from __future__ import annotations
 
@@ -8,13 +9,21 @@ import time
 from typing import Any
 
 from wire.dialect import mavlink
-from wire.resync import parse_stream
+from wire.resync import ResyncMAVLink, resync_connection
 
 
-def _parser() -> Any:
+def _plain() -> Any:
     p = mavlink.MAVLink(None)
     p.robust_parsing = True
     return p
+
+
+def _parser() -> Any:
+    return ResyncMAVLink(None)
+
+
+def parse_stream(p: Any, data: bytes) -> list[Any]:
+    return p.parse_buffer(data) or []
 
 
 def _frames(n: int, start: int = 0) -> list[bytes]:
@@ -29,7 +38,7 @@ def _good(msgs: list[Any]) -> list[int]:
 
 def test_a_stray_partial_header_no_longer_swallows_the_frames_after_it() -> None:
     data = b"\xfd\x30\x00" + b"".join(_frames(5))
-    plain = _parser().parse_buffer(data) or []
+    plain = _plain().parse_buffer(data) or []
     assert len(_good(plain)) < 5  # pymavlink alone trusts the stray length: frames lost
     msgs = parse_stream(_parser(), data)
     assert _good(msgs) == [0, 1, 2, 3, 4]
@@ -67,3 +76,31 @@ def test_hostile_bytes_are_bounded_work_and_good_frames_survive() -> None:
     # to a junk frame whose CRC happens to pass or that ends inside the good one, most arrive.
     assert set(got) <= set(sent) and len(got) >= 0.9 * len(sent), (len(got), len(sent))
     assert cpu < 5.0, cpu  # ~30 kB of near-worst-case bytes: bounded (not a timing figure)
+
+
+def test_a_mavutil_serial_connection_resynchronises(tmp_path: Any) -> None:
+    """The estimator's and the signing bridge's kind of link: ``mavutil`` on a serial device (a pty),
+    given the parser by :func:`resync_connection`; frames behind a stray partial header arrive."""
+    import os
+    import pty
+
+    from pymavlink import mavutil
+
+    mavutil.mavlink = mavlink  # the windseek dialect, as windseek estimator sets it
+    mavutil.current_dialect = "windseek"
+    master, slave = pty.openpty()
+    try:
+        conn = resync_connection(mavutil.mavlink_connection(os.ttyname(slave), baud=57600))
+        assert isinstance(conn.mav, ResyncMAVLink)
+        os.write(master, b"\xfd\x30\x00" + b"".join(_frames(5)))
+        got: list[int] = []
+        end = time.monotonic() + 5.0
+        while len(got) < 5 and time.monotonic() < end:
+            m = conn.recv_match(type="SYSTEM_TIME", blocking=True, timeout=0.2)
+            if m is not None:
+                got.append(m.time_boot_ms)
+        conn.close()
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert got == [0, 1, 2, 3, 4]

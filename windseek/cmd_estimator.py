@@ -214,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
     mavutil.mavlink = dialect
     mavutil.current_dialect = "windseek"
     from wire import signing
+    from wire.resync import resync_connection
 
     key = signing.load_key(getattr(args, "signing_key", None))  # a bad key: one-line error, nothing opened
     device, baud = pymavlink_url(args.connect)
@@ -235,7 +236,7 @@ def run(args: argparse.Namespace) -> int:
         warm_up(core.config)  # a signal meanwhile ends the loop below at once, with the summary
         conn = mavutil.mavlink_connection(device, baud=baud, source_system=args.system_id or 1,
                                           source_component=ESTIMATOR_COMPONENT, autoreconnect=True)  # fmt: skip
-        conn.mav.robust_parsing = True
+        resync_connection(conn)  # a corrupt frame (radio noise) no longer swallows the frames after it
         if key is not None:
             signing.configure_connection(conn, key)
             say("MAVLink 2 signing on: unsigned or wrongly signed frames are dropped")

@@ -12,5 +12,6 @@ pieces live here so none of them imports another's internals:
 - ``signing``: the MAVLink 2 signing key (``--signing-key`` / ``WINDSEEK_SIGNING_KEY``) and verification.
 - ``signing_bridge``: signing for MAVSDK, which has none (its ``raw://`` connection through pymavlink).
 - ``urls``: MAVSDK-style connection URLs to pymavlink's.
+- ``resync``: a parser that re-scans a corrupt frame's bytes (a stray start marker swallowed good frames).
 - ``proxy``: a seeded link-fault proxy between two MAVLink endpoints (``windseek link-proxy``).
 """

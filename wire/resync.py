@@ -12,8 +12,11 @@ frame inside it is found. The unknown message itself is still reported; re-scann
 adds at most a few "Bad prefix" reports. Every step moves at least one byte forward: hostile input
 costs at most the longest frame (280 bytes) of re-scanning per marker byte, never a hang.
 
-Frames with a valid CRC that fail later (a bad signature, an unknown message id) are framed
-correctly and are not re-scanned. Datagram links (UDP) hold whole frames and need none of this.
+A frame with a valid CRC that fails later (a bad signature) is framed correctly and is not
+re-scanned. Datagram links (UDP) hold whole frames and need none of this, but it does no harm there.
+Used by the SITL's endpoint and its link to PX4 (serial, TCP), and, through
+:func:`resync_connection`, by ``windseek estimator`` and the signing bridge on their ``mavutil``
+connections (a real autopilot over a telemetry radio).
 """
 
 from __future__ import annotations
@@ -35,19 +38,32 @@ def _unframed(m: Any) -> bool:
     return mtype == "BAD_DATA" and any(r in str(getattr(m, "reason", "")) for r in _UNFRAMED)
 
 
-def parse_stream(parser: Any, data: bytes) -> list[Any]:
-    """Every message (BAD_DATA included, as pymavlink reports it) that ``data`` completes on
-    ``parser`` (a pymavlink ``MAVLink`` with ``robust_parsing``); after a frame whose length cannot
-    be trusted, its bytes after the start marker are parsed again."""
-    out: list[Any] = []
-    m = parser.parse_char(data)
-    while m is not None:
-        out.append(m)
-        if _unframed(m) and len(m.data) > 1:
-            rest = bytes(m.data[1:]) + bytes(parser.buf[parser.buf_index :])
-            parser.buf, parser.buf_index = bytearray(), 0
-            parser.expected_length = mavlink.HEADER_LEN_V1 + 2
-            m = parser.parse_char(rest)
-        else:
-            m = parser.parse_char(b"")
-    return out
+class ResyncMAVLink(mavlink.MAVLink):
+    """The dialect's parser (``robust_parsing`` on) that re-scans the bytes of a frame whose length
+    cannot be trusted: ``parse_char`` / ``parse_buffer`` return that frame as pymavlink does (a
+    BAD_DATA or UNKNOWN_ message) and carry on from the byte after its start marker. Use it where
+    pymavlink's own parser would be: ``ResyncMAVLink(None, sys, comp)``, or as a ``mavutil``
+    connection's ``mav`` (:func:`resync_connection`)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.robust_parsing = True
+
+    def parse_char(self, c: Any) -> Any:
+        m = super().parse_char(c)
+        data = getattr(m, "data", b"")  # BAD_DATA and UNKNOWN_ messages carry their whole frame
+        if m is not None and _unframed(m) and len(data) > 1:
+            self.buf = bytearray(data[1:]) + self.buf[self.buf_index :]
+            self.buf_index = 0
+            self.expected_length = mavlink.HEADER_LEN_V1 + 2
+        return m
+
+
+def resync_connection(conn: Any) -> Any:
+    """Give a fresh ``mavutil`` connection (before any use) a :class:`ResyncMAVLink` parser with the
+    connection's identity; returns ``conn``. A serial link through a telemetry radio is where a
+    corrupt frame is common and the frames it would swallow matter."""
+    old = conn.mav
+    conn.mav = ResyncMAVLink(conn, srcSystem=old.srcSystem, srcComponent=old.srcComponent,
+                             use_native=False)  # fmt: skip
+    return conn

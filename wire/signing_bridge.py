@@ -29,6 +29,7 @@ from typing import Any
 
 from wire import signing
 from wire.dialect import mavlink as mav
+from wire.resync import resync_connection
 from wire.signing import SigningKey
 from wire.urls import pymavlink_url
 
@@ -69,8 +70,7 @@ class SigningBridge:
         # MAVLink 1 module would be swapped by mavutil at the first MAVLink 2 frame, losing the signing set-up.
         mavutil.mavlink = mav
         mavutil.current_dialect = "windseek"
-        self.conn = mavutil.mavlink_connection(device, baud=baud, autoreconnect=True)
-        self.conn.mav.robust_parsing = True
+        self.conn = resync_connection(mavutil.mavlink_connection(device, baud=baud, autoreconnect=True))
         signing.configure(self.conn.mav, key, link_id, sign_outgoing=False)
         self._enc = mav.MAVLink(None)  # re-packs MAVSDK's frames, signed, with MAVSDK's identity
         signing.configure(self._enc, key, link_id)

@@ -24,8 +24,7 @@ from typing import Any
 
 from sitl.hil.frames import FrameEncoder, split_controls
 from sitl.link.transports import SerialTransport
-from wire.dialect import mavlink
-from wire.resync import parse_stream
+from wire.resync import ResyncMAVLink
 
 #: Wall seconds a TCP send may block on a peer that does not read.
 SEND_TIMEOUT_S = 2.0
@@ -44,9 +43,7 @@ class SimLink:
         self.tap: Any = None
 
     def _new_parser(self) -> Any:
-        p = mavlink.MAVLink(None, 0, 0)
-        p.robust_parsing = True
-        return p
+        return ResyncMAVLink(None, 0, 0)  # re-scans the bytes of a corrupt frame (wire.resync)
 
     @property
     def connected(self) -> bool:
@@ -107,7 +104,7 @@ class SimLink:
                 self.counters["rx_messages"] += len(good)
                 return good
         try:
-            msgs = parse_stream(self._parser, data)
+            msgs = self._parser.parse_buffer(data) or []
         except Exception:  # noqa: BLE001 - the parser must never take the link down
             self.counters["rx_bad"] += 1
             self._parser = self._new_parser()

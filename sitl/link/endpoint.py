@@ -27,7 +27,7 @@ from typing import Any
 from sitl.link.transports import TcpServerTransport, Transport, UdpTransport
 from wire import signing
 from wire.dialect import mavlink
-from wire.resync import parse_stream
+from wire.resync import ResyncMAVLink
 
 log = logging.getLogger(__name__)
 
@@ -43,8 +43,7 @@ class Link:
     def __init__(self, transport: Transport, index: int) -> None:
         self.transport = transport
         self.index = index
-        self.parser = mavlink.MAVLink(None, SYSTEM_ID, COMPONENT_ID)
-        self.parser.robust_parsing = True
+        self.parser = ResyncMAVLink(None, SYSTEM_ID, COMPONENT_ID)  # re-scans a corrupt frame (wire.resync)
         #: Sender address of the datagram being parsed (UDP; None on byte streams): for replies and forwarding.
         self.rx_source: tuple[str, int] | None = None
         self.rx_valid = False  # the datagram being parsed held a valid (authenticated) frame
@@ -183,7 +182,7 @@ class Endpoint:
         """Parse bytes that arrived on a link and dispatch the messages."""
         self.counters["rx_bytes"] += len(data)
         try:
-            msgs = parse_stream(lk.parser, data)
+            msgs = lk.parser.parse_buffer(data) or []
         except Exception:  # the parser must never take the endpoint down
             log.debug("parser error on %s", lk.name, exc_info=True)
             self.counters["rx_bad"] += 1
