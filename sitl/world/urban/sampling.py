@@ -58,10 +58,26 @@ def _log_weights(h: float, fk: float, nk: int, dz: float, wp: np.ndarray) -> tup
     return k0, k1, (1.0 - tk) * u_h / u0, tk * u_h / u1  # clamped outside: tk is 0 or 1
 
 
+#: Where a point is (:func:`_locate`): not finite, inside a building, outside the grid, in the grid.
+NOT_FINITE, IN_BUILDING, OUTSIDE, IN_GRID = 0, 1, 2, 3
+
+
 @njit(cache=True, inline="always")
-def _in_grid(fx: float, fy: float, fh: float, h: float, nx: int, ny: int, nz: int) -> bool:
-    """True when fractional indices (faces: fx in [0, nx], fy, fh) fall in the grid (h >= 0)."""
-    return not (fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0)
+def _locate(
+    x: float, y: float, z: float, gp: np.ndarray, nx: int, ny: int, nz: int, verts: np.ndarray,
+    offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray,
+) -> tuple[int, float, float, float]:  # fmt: skip
+    """(where, fx, fy, fh): the one place the sampling rules decide where NED point (x, y, z) m is
+    (one building test), and its fractional face indices (cells nx, ny, nz; ``gp`` as below)."""
+    h = -z
+    fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return NOT_FINITE, fx, fy, fh
+    if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+        return IN_BUILDING, fx, fy, fh
+    if fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0:
+        return OUTSIDE, fx, fy, fh
+    return IN_GRID, fx, fy, fh
 
 
 @njit(cache=True, inline="always")
@@ -98,20 +114,19 @@ def urban_sample(
 ) -> tuple[float, float, float, float]:  # fmt: skip
     """(north, east, down) mean air-mass velocity m/s and the turbulence multiplier at NED point
     (x, y, z) m in one pass: one building test and one grid look-up for both (the plume samples
-    every puff this way; :func:`urban_wind_at` and :func:`urban_multiplier_at` are its halves).
-    Inside a building: zeros; outside the grid: the upstream log profile and multiplier 1;
-    a non-finite point: NaNs."""
-    h = -z
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+    every puff this way; :func:`urban_wind_at` and :func:`urban_multiplier_at` give one of them
+    by the same rules). Inside a building: zeros; outside the grid: the upstream log profile and
+    multiplier 1; a non-finite point: NaNs."""
+    where, fx, fy, fh = _locate(x, y, z, gp, w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1, verts, offsets, heights,
+                                bbox)  # fmt: skip
+    if where == NOT_FINITE:
         return math.nan, math.nan, math.nan, math.nan
-    if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+    if where == IN_BUILDING:
         return 0.0, 0.0, 0.0, 0.0
-    nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
-    fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
-    if not _in_grid(fx, fy, fh, h, nx, ny, nz):
-        sp = log_speed(h, wp[0], wp[1], wp[2], wp[3])
+    if where == OUTSIDE:
+        sp = log_speed(-z, wp[0], wp[1], wp[2], wp[3])
         return sp * wp[4], sp * wp[5], 0.0, 1.0
-    un, ve, wd = mean_in_grid(fx, fy, fh, h, gp[4], u_n, v_e, w_d, wp)
+    un, ve, wd = mean_in_grid(fx, fy, fh, -z, gp[4], u_n, v_e, w_d, wp)
     return un, ve, wd, _trilinear(tm, fx - 0.5, fy - 0.5, fh - 0.5)
 
 
@@ -125,17 +140,16 @@ def urban_wind_at(
     ``gp`` = (x0, y0, dx, dy, dz), ``wp`` = (U_ref, z0, d, 1/ln((z_ref-d)/z0), e_n, e_e).
     A non-finite position gives NaN (and never an out-of-range read).
     """
-    h = -z
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+    where, fx, fy, fh = _locate(x, y, z, gp, w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1, verts, offsets, heights,
+                                bbox)  # fmt: skip
+    if where == NOT_FINITE:
         return math.nan, math.nan, math.nan
-    if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+    if where == IN_BUILDING:
         return 0.0, 0.0, 0.0
-    nx, ny, nz = w_d.shape[0], w_d.shape[1], w_d.shape[2] - 1
-    fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
-    if not _in_grid(fx, fy, fh, h, nx, ny, nz):
-        sp = log_speed(h, wp[0], wp[1], wp[2], wp[3])
+    if where == OUTSIDE:
+        sp = log_speed(-z, wp[0], wp[1], wp[2], wp[3])
         return sp * wp[4], sp * wp[5], 0.0
-    return mean_in_grid(fx, fy, fh, h, gp[4], u_n, v_e, w_d, wp)
+    return mean_in_grid(fx, fy, fh, -z, gp[4], u_n, v_e, w_d, wp)
 
 
 @njit(cache=True)
@@ -169,14 +183,12 @@ def urban_multiplier_at(x: float, y: float, z: float, gp: np.ndarray, tm: np.nda
                         offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray) -> float:  # fmt: skip
     """Turbulence multiplier at one NED point (m): trilinear between cell centres, 0 inside buildings,
     1 outside the grid (the undisturbed flow), NaN for a non-finite point."""
-    nx, ny, nz = tm.shape
-    h = -z
-    fx, fy, fh = (x - gp[0]) / gp[2], (y - gp[1]) / gp[3], h / gp[4]
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
+    where, fx, fy, fh = _locate(x, y, z, gp, tm.shape[0], tm.shape[1], tm.shape[2], verts, offsets, heights, bbox)
+    if where == NOT_FINITE:
         return math.nan
-    if building_at(x, y, h, verts, offsets, heights, bbox) >= 0:
+    if where == IN_BUILDING:
         return 0.0
-    if fx < 0.0 or fx > nx or fy < 0.0 or fy > ny or fh > nz or h < 0.0:
+    if where == OUTSIDE:
         return 1.0
     return _trilinear(tm, fx - 0.5, fy - 0.5, fh - 0.5)
 
