@@ -3,8 +3,9 @@
 Stationary sensors (the simulator's first-order sensor model: tau 0.5 s, noise 0.01, detection
 limit 0.05 mg/m^3, 10 Hz) on a grid of downwind x / crosswind y / height z about the source of a
 scenario, for ``--seeds`` development seeds x 145 s of the puff plume. A reading is a *hit* as
-the strategies count one (above the limit and above the pure decay of the previous reading by 3
-noise sigmas), a bin of 5 readings is a hit if any is. The figure: the observed bin-hit
+the strategies count one (``PlumeMemory.add``: above the limit and above the pure decay of the
+last detected reading by ``HIT_SIGMAS`` sigmas of the difference of two readings), a bin of 5
+readings is a hit if any is. The figure: the observed bin-hit
 probability next to the strategy's model (``mission.strategies.ste_model``, the meander random
 effect marginalized over its nodes, the intermittent-plume chain at its stationary share) with the
 parameters fitted here by least squares -- intermittency length, meander fraction, meander
@@ -23,6 +24,7 @@ from scipy.optimize import minimize
 
 from mission.strategies import params_from_table
 from mission.strategies.params import InfotaxisParams
+from mission.strategies.plume_memory import HIT_SIGMAS
 from mission.strategies.ste_model import detection_prob_node, meander_nodes, model_constants
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
@@ -59,7 +61,8 @@ def observe(scenario: str, seeds: int) -> tuple[np.ndarray, np.ndarray]:
                                  src[1] + pts[:, 0] * down[1] + pts[:, 1] * cross[1], -pts[:, 2]])
         rng = np.random.default_rng(seed)
         state = np.zeros(len(pts))
-        prev = np.zeros(len(pts))
+        tail_v = np.zeros(len(pts))  # the last detected reading and its time, per point
+        tail_t = np.full(len(pts), -np.inf)
         in_bin = np.zeros(len(pts), bool)
         t = plume.t
         for k in range(1500):
@@ -67,9 +70,11 @@ def observe(scenario: str, seeds: int) -> tuple[np.ndarray, np.ndarray]:
             t += dt
             state += (1.0 - a) * (plume.concentration(world) - state)
             r = np.maximum(state + noise * rng.standard_normal(len(pts)), 0.0)
-            value = np.where(r >= lim, r, 0.0)
-            in_bin |= (r >= lim) & (value > prev * a + 3.0 * noise)
-            prev = value
+            det = r >= lim
+            k_tail = np.exp(-(t - tail_t) / tau)
+            in_bin |= det & (r > tail_v * k_tail + HIT_SIGMAS * noise * np.sqrt(1.0 + k_tail**2))
+            tail_v = np.where(det, r, tail_v)
+            tail_t = np.where(det, t, tail_t)
             if k % 5 == 4:
                 if k > 50:
                     hits += in_bin
