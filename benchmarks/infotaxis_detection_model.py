@@ -9,7 +9,7 @@ readings is a hit if any is. The figure: the observed bin-hit
 probability next to the strategy's model (``mission.strategies.ste_model``, the meander random
 effect marginalized over its nodes, the intermittent-plume chain at its stationary share) with the
 parameters fitted here by least squares -- intermittency length, meander fraction, meander
-direction sigma and the effective release rate -- and with the strategy's defaults.
+direction sigma, source radius and the effective release rate -- and with the strategy's defaults.
 
     python benchmarks/infotaxis_detection_model.py [--scenario open-field] [--seeds 8] [--no-fit]
 """
@@ -20,7 +20,7 @@ import argparse
 import math
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from mission.strategies import params_from_table
 from mission.strategies.params import InfotaxisParams
@@ -32,6 +32,8 @@ from sitl.simulation import Simulation
 XS = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0)
 YS = (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
 ZS = (2.0, 3.0, 5.0)
+#: The strategy's model before the refit (L, meander fraction, meander deg, source radius), for comparison.
+PREVIOUS_DEFAULTS = (40.0, 0.5, 7.0, 0.3)
 
 
 def _defaults() -> InfotaxisParams:
@@ -83,11 +85,11 @@ def observe(scenario: str, seeds: int) -> tuple[np.ndarray, np.ndarray]:
     return pts, hits / n_bins
 
 
-def model(pts: np.ndarray, length: float, fraction: float, meander_deg: float, q: float, u: float,
+def model(pts: np.ndarray, length: float, fraction: float, meander_deg: float, radius: float, q: float, u: float,
           stability: str) -> np.ndarray:
-    """The strategy's P(hit in a bin) at the grid points (source at 2 m)."""
+    """The strategy's P(hit in a bin) at the grid points (source at 2 m, ``radius`` m)."""
     p = _defaults()
-    mc = model_constants(stability, p.source_radius_m, length, p.detection_limit_mg_m3, p.false_alarm,
+    mc = model_constants(stability, radius, length, p.detection_limit_mg_m3, p.false_alarm,
                          p.upwind_reach_m, fraction, math.radians(meander_deg))
     nodes, logw = meander_nodes(int(p.meander_nodes))
     wts = np.exp(logw)
@@ -108,23 +110,32 @@ def main() -> None:
     stability = sc.plume.plume.stability
     pts, obs = observe(args.scenario, args.seeds)
     p = _defaults()
-    fits = {"defaults (q 4.5)": (p.intermittency_length_m, p.meander_fraction, p.meander_deg, 4.5)}
+    def with_rate(shape: tuple[float, float, float, float]) -> tuple[float, float, float, float, float]:
+        """The release rate is a free dimension of the posterior: fit it alone for a fixed shape."""
+        lq = minimize_scalar(lambda lq: float(np.sum((model(pts, *shape, 10.0**lq, u, stability) - obs) ** 2)),
+                             bounds=(-3.0, 3.0), method="bounded").x
+        return (*shape, float(10.0**lq))
+
+    fits = {"defaults (rate fitted)": with_rate((p.intermittency_length_m, p.meander_fraction, p.meander_deg,
+                                                 p.source_radius_m)),
+            "defaults before 2026-12-03 (rate fitted)": with_rate(PREVIOUS_DEFAULTS)}
     if not args.no_fit:
         def loss(th: np.ndarray) -> float:
-            length, frac, deg, lq = th
-            if not (1.0 < length < 500.0 and 0.0 <= frac < 0.99 and 0.0 <= deg < 45.0):
+            length, frac, deg, radius, lq = th
+            if not (1.0 < length < 500.0 and 0.0 <= frac < 0.99 and 0.0 <= deg < 45.0 and 0.01 <= radius < 10.0):
                 return 1e9
-            return float(np.sum((model(pts, length, frac, deg, 10.0**lq, u, stability) - obs) ** 2))
+            return float(np.sum((model(pts, length, frac, deg, radius, 10.0**lq, u, stability) - obs) ** 2))
 
-        best = minimize(loss, np.array([30.0, 0.5, 7.0, 0.5]), method="Nelder-Mead",
-                        options={"maxiter": 400, "xatol": 1e-3, "fatol": 1e-6})
-        length, frac, deg, lq = best.x
-        fits["fitted"] = (length, frac, deg, 10.0**lq)
-    for name, (length, frac, deg, q) in fits.items():
-        mod = model(pts, length, frac, deg, q, u, stability)
+        best = minimize(loss, np.array([30.0, 0.5, 7.0, 0.3, 0.5]), method="Nelder-Mead",
+                        options={"maxiter": 600, "xatol": 1e-3, "fatol": 1e-6})
+        length, frac, deg, radius, lq = best.x
+        fits["fitted"] = (length, frac, deg, radius, 10.0**lq)
+    for name, (length, frac, deg, radius, q) in fits.items():
+        mod = model(pts, length, frac, deg, radius, q, u, stability)
         rms = [float(np.sqrt(np.mean((mod - obs)[pts[:, 2] == z] ** 2))) for z in ZS]
         print(f"{name}: intermittency length {length:.1f} m, meander fraction {frac:.2f}, meander {deg:.1f} deg, "
-              f"effective rate {q:.2f} g/s; rms error at z = 2 / 3 / 5 m: " + " / ".join(f"{r:.3f}" for r in rms))
+              f"source radius {radius:.2f} m, effective rate {q:.2f} g/s; loss {np.sum((mod - obs) ** 2):.3f}; "
+              "rms error at z = 2 / 3 / 5 m: " + " / ".join(f"{r:.3f}" for r in rms))
     print(f"\n{args.scenario}, {args.seeds} seeds, P(hit in a 0.5 s bin) at 2 m height (source height), "
           "observed / model (last fit)")
     print("| x downwind m | " + " | ".join(f"y {y:g}" for y in YS) + " |")

@@ -107,5 +107,5 @@ def test_infotaxis_widens_only_when_the_wind_wanders():
     turning = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0, reference_deg=10.0)
     assert turning.mismatch > 1.5
     assert turning.post.kappa < 0.7 * p.tempering
-    off = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0, reference_deg=0.0)  # the default: off
+    off = _run(lambda t: 25.0 if int(t // 10) % 2 else -25.0, reference_deg=0.0)  # off
     assert off.mismatch == 1.0 and off.post.kappa == p.tempering

@@ -12,11 +12,12 @@ reading is expected to tell the most about the source:
   above the limit says nothing new and is skipped. Each is attributed to where the vehicle was
   ``sensor_lag_s`` earlier, at its height above home.
 - **Moves** (infotaxis, Vergassola, Villermaux & Shraiman, Nature 445, 2007, with a short
-  receding horizon): every tick, ``plan_directions`` straight moves of ``plan_horizon_m`` from
-  the current position (the first along the current heading) are scored by the sum of the
-  expected information of ``plan_points`` readings along them -- the mutual information between
-  a binary reading and the source, over ``plan_particles`` particles drawn from the posterior --
-  and the vehicle flies the best at ``speed_m_s``. Far from the source the most informative
+  receding horizon): on the tick after each reading bin, ``plan_directions`` straight moves from
+  the current position (the first along the current heading), as long as the distance to the
+  posterior plus its credible radius (``plan_min_m`` to ``plan_horizon_m``), are scored by the
+  largest expected information of ``plan_points`` readings along them -- the mutual information
+  between a binary reading and the source, over ``plan_particles`` particles drawn from the
+  posterior -- and the vehicle flies the best at ``speed_m_s``. Far from the source the most informative
   readings lie where the posterior is split between "the source is upwind of here" and "it is
   behind": the vehicle goes upwind along the plume; near it, around the source.
 - **Declaration.** The ``credible_level`` (90 %) credible region is a disc whose centre is moved

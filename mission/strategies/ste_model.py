@@ -10,26 +10,32 @@ open-country spreads of the assumed Pasquill-Gifford class (Briggs 1973; the for
     C = 1000 q / (2 pi u sy sz) exp(-y^2 / 2 sy^2) [exp(-(z - h)^2 / 2 sz^2) + exp(-(z + h)^2 / 2 sz^2)]
 
 (x downwind, y crosswind of the hypothesis' source, z the sensor height; mg/m^3 for q in g/s).
-A real plume is intermittent: a sensor inside it reads above the detection limit only part of
-the time, the less the further downwind (puffs, gaps, meander). The detection probability is
+A real plume is intermittent and meanders: a sensor inside the mean plume reads above the
+detection limit only part of the time, the less the further downwind. The model (per source
+hypothesis, at x m downwind, y crosswind, sensor height z):
 
-    g(x) = 1 / (1 + x / L)                                   (intermittency: share of time in plume)
-    p(x, y, z) = eps + (1 - 2 eps) g [1 - exp(-(C / (g c_thr))^beta)]
+- the mean plume is an *instantaneous* plume (a share ``1 - MF`` of the class's crosswind
+  variance, plus ``r0^2``) that meanders crosswind: its centreline is offset by xi sigma_m, with
+  sigma_m^2 = MF sigma_y^2 + (theta_m x)^2 (a share ``MF`` of the variance plus a direction sigma
+  ``theta_m``), xi a standard normal random effect shared by the readings of a window and
+  marginalized over Gauss-Hermite nodes (``meander_nodes``);
+- inside the instantaneous plume the sensor is in a puff with probability g(x) = 1 / (1 + x / L)
+  (intermittency length ``L``; a two-state Markov chain from one reading to the next, persistence
+  ``rho``, in ``accumulate``), and in a puff the concentration is exponentially distributed with
+  mean c / g, so P(hit | in) = exp(-g c_thr / c) with ``c_thr`` the detection limit;
+- ``eps`` is the floor both ways: a hit where the model says "impossible" (or a miss where it
+  says "certain") costs a bounded amount, so a model error cannot veto a hypothesis outright;
+- upwind of a hypothesis (x < 0) nothing is released, but a reading's place is uncertain by
+  about a metre: the probability at x = 0+ falls off upwind with a Gaussian of ``sigma_up``.
 
-with ``c_thr`` the sensor's detection limit, ``L`` the intermittency length and ``beta`` < 1
-softening the plume edge (the meander smears the instantaneous plume's sharp edge over the mean
-plume's width). ``eps`` is the floor both ways: a hit where the model says "impossible" (or a
-miss where it says "certain") costs a bounded amount, so a model error cannot veto a hypothesis
-outright. Upwind of a hypothesis (x < 0) the puffs' own size still reaches a little: the
-concentration there is that at x = 0+ times exp(-x^2 / 2 sigma_up^2).
-
-``L`` and ``beta`` are fitted to the simulator's puff plume (moderate turbulence, class D,
-5 m/s, sensor at 2/3/5 m, development seeds; ``benchmarks/infotaxis_detection_model.py``
-prints the fit): L = 39 m, beta = 0.32, rms error of p 0.06 over 363 points from 0.5 to 90 m
-downwind. In high turbulence the best fit is L = 14 m, beta = 0.16: the defaults are a model
-of moderate turbulence, and a mismatch is measured, not assumed away. The release rate is a
-free parameter of the posterior, so ``q`` is the *effective* rate of this model (about 0.3 g/s
-for the 1 g/s simulated source): a less sensitive sensor, or a weaker source, only moves ``q``.
+``L``, ``MF``, ``theta_m`` and ``r0`` are fitted to the simulator's puff plume (moderate
+turbulence, class D, 5 m/s, sensors at 2/3/5 m height from 0.5 to 90 m downwind, development
+seeds; ``benchmarks/infotaxis_detection_model.py`` prints the fit and the table): L = 35 m,
+MF = 0.35, theta_m = 6.2 deg, r0 = 0.44 m. The defaults are a model of moderate turbulence; in
+high turbulence the plume is more intermittent and wanders further, and a mismatch is measured
+(``ste_adapt``), not assumed away. The release rate is a free parameter of the posterior, so
+``q`` is the *effective* rate of this model (about 2.5 g/s in the fit for the 1 g/s simulated
+source): a less sensitive sensor, or a weaker source, only moves ``q``.
 
 Hot kernels (numba): the posterior update over all particles and the expected information of a
 binary reading at candidate points (infotaxis, Vergassola et al. 2007: the expected entropy
