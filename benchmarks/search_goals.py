@@ -15,7 +15,7 @@ A cell is ``strategy:scenario:wind``. ``--cache`` keeps every finished cell (JSO
 is built from all cached cells, so a long table runs in pieces; a cell is keyed by strategy,
 scenario, wind and first seed (a re-run replaces it). The table goes into ``benchmarks/README.md``
 between ``<!-- search_goals:begin -->`` and ``<!-- search_goals:end -->`` with the command line
-of every run that contributed. Evaluation seeds start at 1000; seeds 100-179 are for development.
+of every run that contributed. Evaluation seeds start at 1000; seeds 100-179 and 200-299 are for development.
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ reading is expected to tell the most about the source:
   confidence. The vehicle flies over the point, descends and stops, as the other strategies do.
 - **Free ticks** (neither a posterior update nor a move choice) weigh the particles redrawn at the
   last resampling against the reading history (``SourcePosterior.weigh_step``).
-- Optionally (``spread_reference_deg`` > 0, off by default) the likelihood widens with the
+- Above a wind direction spread of ``spread_reference_deg`` (12 deg) the likelihood widens with the
   measured spread of the wind direction (``mission.strategies.ste_adapt``).
 
 Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any

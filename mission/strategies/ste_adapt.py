@@ -1,8 +1,8 @@
 """Measured conditions for the STE likelihood: how far the wind direction wanders.
 
 The detection model of ``mission.strategies.ste_model`` was fitted to one plume (moderate
-turbulence, a steady mean wind): a 7 deg meander, an intermittency length, and readings that
-count fully (tempering 1). Where the wind direction wanders further -- high turbulence, a wind
+turbulence, a steady mean wind): a 6.2 deg meander, an intermittency length, and a tempering of
+the readings (0.8). Where the wind direction wanders further -- high turbulence, a wind
 that turns in steps -- the plume swings wider and more often away than that model says, its
 misses on the true source's plume are a model error, and the posterior becomes sure of wrong
 places (issue 19: a 90 % region that held the source in 75-80 % of declarations).
@@ -16,10 +16,10 @@ paper-anemotaxis (45 deg steps every 10 s). Above a reference spread the likelih
 by the ratio ``f = spread / reference`` (:func:`mismatch_factor`): the meander's direction sigma
 times ``f ** meander_power`` and the tempering exponent divided by ``f ** tempering_power``
 (``Infotaxis`` applies both before each posterior update). Below the reference nothing changes:
-the model stays the one fitted where it holds. **Off by default** (``spread_reference_deg`` = 0):
-with a 10 deg reference it made the posterior honest but slow on the development seeds
-(open-field-high 70 % within 3 m, no wrong declaration, 6 of 20 timeouts, against 85 % and one
-wrong declaration without it; ``benchmarks/README.md``, "Infotaxis outside open-field").
+the model stays the one fitted where it holds. **On above 12 deg by default**
+(``spread_reference_deg``; 0 turns it off). Development seeds 200-259, within 3 m / 90 % region
+held: paper-anemotaxis 82 / 75 % without it, 98 / 95 % with it; open-field-high 83 / 92 % without,
+73 / 91 % with (honest both ways, slower with it: more timeouts); ``mission/README.md``, Infotaxis.
 
 Units: s, rad; the wind is the air-mass velocity (north, east) [m/s].
 """

@@ -34,8 +34,9 @@ seeds; ``benchmarks/infotaxis_detection_model.py`` prints the fit and the table)
 MF = 0.35, theta_m = 6.2 deg, r0 = 0.44 m. The defaults are a model of moderate turbulence; in
 high turbulence the plume is more intermittent and wanders further, and a mismatch is measured
 (``ste_adapt``), not assumed away. The release rate is a free parameter of the posterior, so
-``q`` is the *effective* rate of this model (about 2.5 g/s in the fit for the 1 g/s simulated
-source): a less sensitive sensor, or a weaker source, only moves ``q``.
+``q`` is the *effective* rate of this model (0.04 g/s in the fit for the 1 g/s simulated
+source: in a puff the model's concentration is exponentially distributed, and the fit matches the
+share of bins with a hit, not the concentration): a less sensitive sensor, or a weaker source, only moves ``q``.
 
 Hot kernels (numba): the posterior update over all particles and the expected information of a
 binary reading at candidate points (infotaxis, Vergassola et al. 2007: the expected entropy
