@@ -8,6 +8,9 @@ goes south). The source of the synthetic tests is 60 m north of home at 2 m, as 
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -200,3 +203,26 @@ def test_inprocess_infotaxis_trial_reports_the_credible_region():
     assert r.reach_path_m >= r.start_distance_m - REACH_RADIUS_M - 1.0
     s = summarize([r])
     assert s["credible_coverage"] == float(r.credible_contains) and s["within_3m_rate"] == float(r.success)
+
+
+def test_reset_runs_every_flight_kernel_before_the_first_tick():
+    """The numba kernels load (or compile) on their first call: 0.2-0.9 s each from the disk cache.
+    ``reset`` (before arming) runs them all once, so none is first called in the offboard loop,
+    where a 1 s gap in the setpoints makes PX4 leave offboard. A fresh interpreter: before the reset
+    no kernel is loaded, after it every one the strategy calls in flight is."""
+    code = """
+import numpy as np
+from numba.core.registry import CPUDispatcher
+import mission.strategies.ste_history as h, mission.strategies.ste_model as m
+from mission.strategies import params_from_table
+from mission.strategies.infotaxis import Infotaxis
+display_only = {"detection_prob", "detection_prob_node"}  # benchmarks and tests, not the strategy
+kernels = {k: v for mod in (m, h) for k, v in vars(mod).items() if isinstance(v, CPUDispatcher)
+           and v.__module__ == mod.__name__ and v.targetoptions.get("inline") != "always" and k not in display_only}
+before = sorted(k for k, v in kernels.items() if v.signatures)
+Infotaxis().reset(np.zeros(3), params_from_table("infotaxis", None), seed=1)
+print(len(kernels), before, sorted(k for k, v in kernels.items() if not v.signatures))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True,
+                         cwd=Path(__file__).resolve().parents[1]).stdout.split()
+    assert out == ["5", "[]", "[]"], out  # plume_frame, accumulate, fold, expected_information, _replay

@@ -41,10 +41,11 @@ Frames and units: NED, SI; headings in rad (0 = north, clockwise); heights above
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from mission.strategies.base import Observation, Setpoint, heading_of, heading_vec
+from mission.strategies.base import Observation, Setpoint, WindInfo, heading_of, heading_vec
 from mission.strategies.common import BaseStrategy
 from mission.strategies.params import InfotaxisParams
 from mission.strategies.ste_adapt import DirectionSpread, adapted_likelihood, mismatch_factor
@@ -72,6 +73,31 @@ def weigh_count(readings: int) -> int:
     return max(1, min(WEIGH_PER_TICK, WEIGH_BUDGET // max(1, readings)))
 
 
+#: Whether this process has run the numba kernels once (``warm_kernels``).
+_warm = False
+
+
+def warm_kernels(params: InfotaxisParams) -> None:
+    """Run every numba kernel the strategy uses once, on a throwaway strategy with few particles,
+    so that their first calls -- loading the machine code from numba's on-disk cache, or compiling
+    it on a fresh install -- happen in ``reset`` (before arming), not in the first offboard ticks.
+    Measured from the cache: 0.2-0.9 s for the first move choice and 0.4 s for the first posterior
+    update, against 4 ms for later ticks; a real autopilot leaves offboard after 1 s without a
+    setpoint (PX4's COM_OF_LOSS_T), the SITL at speed 5 after 0.2 s of wall clock. Once per process."""
+    global _warm
+    if _warm:
+        return
+    _warm = True
+    s = Infotaxis()
+    s.reset(np.zeros(3), replace(params, n_particles=100, plan_particles=10, declare_hold_s=0.0), seed=0)
+    wind = WindInfo(wind_ned=np.array([-4.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)
+    for k in range(40):  # hits, then misses: updates, a resampling and its weighing, moves, the disc
+        c = 1.0 if (k < 30 and k % 2 == 0) else 0.0
+        s.update(Observation(t=0.1 * k, position_ned=np.array([0.0, 0.0, -params.altitude_m]), velocity_ned=np.zeros(3),
+                             chem_mg_m3=c, detected=c > 0.0, chem_new=True, wind=wind))
+    s.posterior_map()
+
+
 class Infotaxis(BaseStrategy):
     """Source-term estimation (particle posterior) + infotaxis moves + credible-region declaration."""
 
@@ -79,6 +105,7 @@ class Infotaxis(BaseStrategy):
     p: InfotaxisParams
 
     def reset(self, start_ned: np.ndarray, params: InfotaxisParams, seed: int = 0) -> None:  # type: ignore[override]
+        warm_kernels(params)
         super().reset(start_ned, params, seed)
         p = params
         mc = model_constants(p.stability, p.source_radius_m, p.intermittency_length_m, p.detection_limit_mg_m3,
