@@ -24,7 +24,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from mission.strategies import params_from_table
 from mission.strategies.params import InfotaxisParams
-from mission.strategies.plume_memory import HIT_SIGMAS
+from mission.strategies.plume_memory import hit_threshold
 from mission.strategies.ste_model import detection_prob_node, meander_nodes, model_constants
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
@@ -74,7 +74,7 @@ def observe(scenario: str, seeds: int) -> tuple[np.ndarray, np.ndarray]:
             r = np.maximum(state + noise * rng.standard_normal(len(pts)), 0.0)
             det = r >= lim
             k_tail = np.exp(-(t - tail_t) / tau)
-            in_bin |= det & (r > tail_v * k_tail + HIT_SIGMAS * noise * np.sqrt(1.0 + k_tail**2))
+            in_bin |= det & (r > hit_threshold(tail_v, k_tail, noise))
             tail_v = np.where(det, r, tail_v)
             tail_t = np.where(det, t, tail_t)
             if k % 5 == 4:

@@ -25,6 +25,13 @@ HIT_TAU_S = 3.0
 HIT_SIGMAS = 4.0
 
 
+def hit_threshold(tail_value: float | np.ndarray, k: float | np.ndarray, noise: float) -> float | np.ndarray:
+    """The reading [mg/m^3] a detection must exceed to be a hit: the last detected reading
+    ``tail_value`` decayed by ``k`` = exp(-dt / sensor tau), plus ``HIT_SIGMAS`` standard deviations
+    of the difference of two readings of noise ``noise`` (1-sigma each). Floats or arrays."""
+    return tail_value * k + HIT_SIGMAS * noise * (1.0 + k * k) ** 0.5
+
+
 class PlumeMemory:
     """Detections (time, lag-corrected horizontal position, value) and every sample for the
     chemotaxis gradient; times in s, positions m (north, east), values mg/m^3."""
@@ -70,13 +77,8 @@ class PlumeMemory:
         tc = obs.t if math.isnan(obs.chem_t) else obs.chem_t
         hit = False
         if obs.detected:
-            if math.isnan(self._tail_t):
-                decayed, k = 0.0, 0.0
-            else:
-                k = math.exp(-max(tc - self._tail_t, 0.0) / self.p.sensor_tau_s)
-                decayed = self._tail_value * k
-            sigma = self.p.sensor_noise_mg_m3 * math.sqrt(1.0 + k * k)
-            hit = value > decayed + HIT_SIGMAS * sigma
+            k = 0.0 if math.isnan(self._tail_t) else math.exp(-max(tc - self._tail_t, 0.0) / self.p.sensor_tau_s)
+            hit = bool(value > hit_threshold(self._tail_value, k, self.p.sensor_noise_mg_m3))
             self._tail_value, self._tail_t = value, tc
         pos = obs.position_ned[0:2] - self.p.sensor_lag_s * obs.velocity_ned[0:2]
         dt = 0.1 if math.isnan(self._t_sample) else max(tc - self._t_sample, 0.0)
