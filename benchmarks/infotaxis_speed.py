@@ -17,6 +17,11 @@ choice in ``plan_particles`` x ``plan_directions`` x ``plan_points``, the credib
 O(n log n).
 
     python benchmarks/infotaxis_speed.py [--particles 1000,2000,4000,8000] [--plan-particles 150,300,600]
+    python benchmarks/infotaxis_speed.py --first-calls
+
+``--first-calls``: in fresh interpreters (the kernels' machine code loaded from numba's disk cache,
+as a mission starts), the wall time of ``reset``, of the slowest of the first 60 ticks (a hit
+every 0.7 s) and of all 60, with the kernel warm-up in ``reset`` and without it (``infotaxis._warm`` set first).
 """
 
 from __future__ import annotations
@@ -74,7 +79,11 @@ def main() -> None:
     ap.add_argument("--particles", default="1000,2000,4000,8000")
     ap.add_argument("--plan-particles", default="150,300,600")
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--first-calls", action="store_true", help="time reset and the first ticks, fresh processes")
     args = ap.parse_args()
+    if args.first_calls:
+        _first_calls()
+        return
     _drive(200, 50, 2.0)  # compile the kernels
     print("| particles | plan particles | update ms | resample ms | move choice ms | credible disc ms "
           f"| history weighing ms ({HISTORY_READINGS} readings) | worst tick ms | mean tick ms |")
@@ -126,6 +135,45 @@ def _weigh_ms(s: Infotaxis, repeats: int) -> float:
         out.append(time.thread_time() - t0)
         post._pending = None
     return 1e3 * float(np.median(out))
+
+
+
+_FIRST = """
+import sys, time, numpy as np
+import mission.strategies.infotaxis as it
+from mission.strategies import params_from_table
+from mission.strategies.base import Observation, WindInfo
+it._warm = sys.argv[1] == "off"
+s = it.Infotaxis()
+t0 = time.perf_counter()
+s.reset(np.zeros(3), params_from_table("infotaxis", None), seed=1)
+t_reset = time.perf_counter() - t0
+wind = WindInfo(wind_ned=np.array([-4.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)
+ticks = []
+for k in range(60):
+    c = 1.0 if k % 7 == 0 else 0.0
+    t0 = time.perf_counter()
+    s.update(Observation(t=0.1 * k, position_ned=np.array([0.0, 0.0, -2.0]), velocity_ned=np.zeros(3),
+                         chem_mg_m3=c, detected=c > 0.0, chem_new=True, wind=wind))
+    ticks.append(time.perf_counter() - t0)
+print(t_reset, max(ticks), sum(ticks), int(np.argmax(ticks)))
+"""
+
+
+def _first_calls(runs: int = 3) -> None:
+    """Wall time of ``reset`` and of the first ticks in fresh interpreters, warm-up on and off."""
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, "-c", _FIRST, "on"], check=True, capture_output=True)  # fill the disk cache
+    print("| kernel warm-up in reset | run | reset s | slowest of the first 60 ticks ms (tick) | all 60 ticks ms |")
+    print("|---|---:|---:|---:|---:|")
+    for mode in ("off", "on"):
+        for i in range(runs):
+            out = subprocess.run([sys.executable, "-c", _FIRST, mode], check=True, capture_output=True, text=True)
+            t_reset, worst, total, at = out.stdout.split()
+            print(f"| {mode} | {i + 1} | {float(t_reset):.2f} | {1e3 * float(worst):.0f} ({at}) | "
+                  f"{1e3 * float(total):.0f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -206,7 +206,8 @@ def test_inprocess_infotaxis_trial_reports_the_credible_region():
 
 
 def test_reset_runs_every_flight_kernel_before_the_first_tick():
-    """The numba kernels load (or compile) on their first call: 0.2-0.9 s each from the disk cache.
+    """The numba kernels load (or compile) on their first call: 0.2-0.3 s in all from the disk cache
+    on a quiet machine, up to 1.3 s on a busy one (``benchmarks/infotaxis_speed.py --first-calls``).
     ``reset`` (before arming) runs them all once, so none is first called in the offboard loop,
     where a 1 s gap in the setpoints makes PX4 leave offboard. A fresh interpreter: before the reset
     no kernel is loaded, after it every one the strategy calls in flight is."""

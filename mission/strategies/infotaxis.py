@@ -81,9 +81,12 @@ def warm_kernels(params: InfotaxisParams) -> None:
     """Run every numba kernel the strategy uses once, on a throwaway strategy with few particles,
     so that their first calls -- loading the machine code from numba's on-disk cache, or compiling
     it on a fresh install -- happen in ``reset`` (before arming), not in the first offboard ticks.
-    Measured from the cache: 0.2-0.9 s for the first move choice and 0.4 s for the first posterior
-    update, against 4 ms for later ticks; a real autopilot leaves offboard after 1 s without a
-    setpoint (PX4's COM_OF_LOSS_T), the SITL at speed 5 after 0.2 s of wall clock. Once per process."""
+    Measured (``benchmarks/infotaxis_speed.py --first-calls``, quiet machine, warm disk cache): the
+    first tick 0.20-0.23 s and the first 60 ticks 0.27-0.30 s without it, 5 ms and 0.06 s with it
+    (``reset`` then takes 0.21-0.24 s); right after the cache was rewritten, on a busy machine, the
+    first move choice and update took 0.9 + 0.4 s. A real autopilot leaves offboard after 1 s without
+    a setpoint (PX4's COM_OF_LOSS_T), the SITL at speed 5 in the tests after 1 s of wall clock.
+    Once per process."""
     global _warm
     if _warm:
         return
