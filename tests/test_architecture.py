@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("sitl", "vehicle", "wire", "estimator", "mission", "recording", "review", "windseek")
+PACKAGES = ("sitl", "vehicle", "wire", "estimator", "mission", "recording", "review", "windseek", "identify")
 GENERATED = {"wire/dialect/windseek.py"}
 MAX_LINES = 450
 
