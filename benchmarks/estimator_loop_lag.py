@@ -26,7 +26,7 @@ from estimator_stream import autopilot_messages, over_the_wire, record  # noqa: 
 
 from estimator.live import LiveConfig, LiveCore, warm_up  # noqa: E402
 from estimator.worker import EstimatorWorker  # noqa: E402
-from vehicle.params import load_vehicle  # noqa: E402
+from vehicle.vehicle_file import load_vehicle  # noqa: E402
 
 
 async def _run(stream: list, times: np.ndarray, speed: float, worker: bool) -> tuple[np.ndarray, str]:

@@ -40,7 +40,7 @@ from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator
 from sitl.scenario import load_scenario
 from sitl.simulation import T_QUAT, Simulation
 from vehicle.frames import quat_to_dcm
-from vehicle.params import load_vehicle
+from vehicle.vehicle_file import load_vehicle
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -41,7 +41,7 @@ from review.estimate import run_estimator  # noqa: E402
 from review.rrd import write_rrd  # noqa: E402
 from review.summary import missing_inputs  # noqa: E402
 from review.trust import trust_mask  # noqa: E402
-from vehicle.params import load_vehicle  # noqa: E402
+from vehicle.vehicle_file import load_vehicle  # noqa: E402
 
 LOG_NAMES = ["ardupilot-quadplane-sitl.tlog", "px4-bench-never-armed.ulg", "px4-sitl-quad-hover.ulg",
              "px4-vtol-short-hop.ulg", "ardupilot-dataflash-excerpt.BIN"]  # fmt: skip

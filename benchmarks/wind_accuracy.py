@@ -1,19 +1,26 @@
-"""Wind estimator accuracy over seeds (paper Scenarios 1 and 2), and RotorPy's WindUKF as a peer.
+"""Wind estimator accuracy over seeds (paper Scenarios 1 and 2), with model mismatch, and RotorPy's WindUKF as a peer.
 
-    python benchmarks/wind_accuracy.py [--seeds 10] [--seed0 1] [--duration 60] [--no-peer] [--cases s1,s2,s1p,s2p,s1n]
+    python benchmarks/wind_accuracy.py [--seeds 10] [--seed0 1] [--duration 60] [--no-peer]
+                                       [--cases s1,s2,s1t5,s2t5,s1ic,s2ic] [--vehicle nasa-quad]
 
 Seeds are seed0 .. seed0 + seeds - 1; the benchmark's are 1..10 (the default), tuning and
 validation uses another set (e.g. ``--seed0 100``) so that the benchmark seeds stay a test set.
+The identification flights (``windseek identify calm --seed 1``: world seeds 1 and 1001, calm air,
+its own manoeuvres) share no flight with these scenarios.
 
-Cases: s1/s2 = paper-s1/-s2 with the exact model; s1u/s2u = the same with the ``uncalibrated``
-preset (the one the search missions fly on; ``benchmarks/urban_wind_accuracy.py``); s1p/s2p =
-model perturbed inside the paper's 95 % intervals (+ mass/inertia error); s1n = paper-s1 without
-ESC rotor speeds. Figures are defined in ``estimator.metrics`` (mean over seeds; re-convergence:
-mean and worst).
+Cases (world truth / estimator model):
+- s1, s2: paper-s1 / -s2 in the blade-element world, the estimator on the model identified from that
+  world (the vehicle file's own [model]): the headline figures, the paper's set-up.
+- s1t5, s2t5: the same world, the estimator on the paper's Table 5 (``nasa-quad-table5``): what
+  identifying the vehicle buys.
+- s1ic, s2ic: the inverse crime of earlier figures: the world flies Table 5 and the estimator
+  inverts Table 5 (only the sensor noise between them).
+- s1u / s2u: s1 / s2 with the ``uncalibrated`` preset; s1p / s2p: the identified model perturbed
+  inside its 95 % intervals (+ mass/inertia error), uncalibrated; s1n: s1 without ESC rotor speeds.
+``--vehicle`` runs the s1/s2 family on another vehicle file (its truth and its [model]).
 
-Estimator preset per case (``EstimatorConfig.preset``, printed in each row): the exact-model
-cases run ``calibrated`` (the vehicle was identified, as the paper assumes), the perturbed
-ones ``uncalibrated`` (force-scale state), as ``windseek estimate`` picks by default.
+Figures are defined in ``estimator.metrics`` (mean over seeds; re-convergence: mean and worst).
+Estimator preset per case (``EstimatorConfig.preset``, printed in each row).
 
 Peer: ``rotorpy.estimators.wind_ukf.WindUKF`` (quadratic-drag model with collective thrust
 input). Its drag coefficients are calibrated like its own example: a separate windless flight
@@ -46,28 +53,36 @@ from sitl.scenario import Route, Start, Waypoint, load_scenario
 from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_SPECIFIC_FORCE, T_TIME, T_VEL, T_WIND, Simulation
 from sitl.world.wind import SteadyWind
 from vehicle.frames import quat_to_dcm
-from vehicle.rotor_model import rotor_wrench
+from vehicle.params import VehicleParams
+from vehicle.vehicle_file import load_vehicle
 
-# case: (scenario, perturbed model, no ESC rotor speeds, estimator preset)
+TABLE5 = "nasa-quad-table5"
+# case: (scenario, world vehicle (None: the --vehicle), model (None: the world vehicle's own), perturbed model,
+#        no ESC rotor speeds, estimator preset)
 CASES = {
-    "s1": ("paper-s1", False, False, "calibrated"),
-    "s2": ("paper-s2", False, False, "calibrated"),
-    "s1p": ("paper-s1", True, False, "uncalibrated"),
-    "s2p": ("paper-s2", True, False, "uncalibrated"),
-    "s1n": ("paper-s1", False, True, "calibrated"),
-    "s1u": ("paper-s1", False, False, "uncalibrated"),  # the search missions' preset on the exact model
-    "s2u": ("paper-s2", False, False, "uncalibrated"),
+    "s1": ("paper-s1", None, None, False, False, "calibrated"),
+    "s2": ("paper-s2", None, None, False, False, "calibrated"),
+    "s1t5": ("paper-s1", None, TABLE5, False, False, "calibrated"),
+    "s2t5": ("paper-s2", None, TABLE5, False, False, "calibrated"),
+    "s1ic": ("paper-s1", TABLE5, None, False, False, "calibrated"),
+    "s2ic": ("paper-s2", TABLE5, None, False, False, "calibrated"),
+    "s1u": ("paper-s1", None, None, False, False, "uncalibrated"),
+    "s2u": ("paper-s2", None, None, False, False, "uncalibrated"),
+    "s1p": ("paper-s1", None, None, True, False, "uncalibrated"),
+    "s2p": ("paper-s2", None, None, True, False, "uncalibrated"),
+    "s1n": ("paper-s1", None, None, False, True, "calibrated"),
 }
 F = np.diag([1.0, -1.0, -1.0])  # FRD <-> FLU and NED <-> (north, west, up)
 
 
-def run_case(case: str, seeds: list[int], duration: float) -> dict:
-    name, perturb, no_rpm, preset = CASES[case]
+def run_case(case: str, seeds: list[int], duration: float, vehicle: str = "nasa-quad") -> dict:
+    name, world, model, perturb, no_rpm, preset = CASES[case]
     config = EstimatorConfig.preset(preset)
     rows = []
+    model_params = load_vehicle(model) if model else None
     for s in seeds:
-        sc = load_scenario(name).with_duration(duration)
-        r = InProcessRunner(sc, seed=s, perturb_model=perturb, no_rpm=no_rpm, config=config)
+        sc = replace(load_scenario(name).with_duration(duration), vehicle=world or vehicle)
+        r = InProcessRunner(sc, seed=s, perturb_model=perturb, no_rpm=no_rpm, config=config, model=model_params)
         log = r.run()
         steps = tuple(c.t_s for c in sc.wind.changes if 0.0 < c.t_s < sc.duration_s)
         a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, log.direction_filtered_deg, step_times=steps)
@@ -90,9 +105,11 @@ def run_case(case: str, seeds: list[int], duration: float) -> dict:
 
 
 # ---------------------------------------------------------------------------------- RotorPy peer
-def _thrust(row: np.ndarray, p: np.ndarray) -> float:
-    """Thrust (N, positive up) the controller commands: the rotor model's -Z at zero airspeed."""
-    return float(-rotor_wrench(np.zeros(3), np.zeros(3), row[T_ROTOR_CMD], np.zeros(4), p)[2])
+def _thrust(row: np.ndarray, vehicle: VehicleParams) -> float:
+    """Thrust (N, positive up) the controller commands: its static thrust curve at the commanded speeds."""
+    c = vehicle.control
+    w = row[T_ROTOR_CMD][: vehicle.n_rotors]
+    return float(np.sum(c["kt2"] * w * w + c["kt1"] * w))
 
 
 def calibration_drag(seed: int = 100) -> tuple[dict, float]:
@@ -114,11 +131,10 @@ def calibration_drag(seed: int = 100) -> tuple[dict, float]:
     sim = Simulation(sc, seed=seed, record_truth=True)
     sim.run(sc.duration_s)
     T = sim.truth_array()
-    p = sim.params
     m = sim.vehicle.mass_kg
     vb = np.array([quat_to_dcm(r[T_QUAT]).T @ r[T_VEL] for r in T])
     acc = T[:, T_SPECIFIC_FORCE].copy()
-    acc[:, 2] += np.array([_thrust(r, p) for r in T]) / m  # FRD z: specific force + thrust/m = drag part
+    acc[:, 2] += np.array([_thrust(r, sim.vehicle) for r in T]) / m  # FRD z: specific force + thrust/m = drag part
     coefs = {}
     for i, key in enumerate(("c_Dx", "c_Dy", "c_Dz")):
         sel = np.abs(vb[:, i]) > 0.3
@@ -144,7 +160,6 @@ def run_peer(seed: int, duration: float, coefs: dict, mass: float) -> tuple:
             gnss_t.append(g.t)
             gnss_v.append(g.vel_ned)
     T = sim.truth_array()
-    p = sim.params
     dt = 0.01
     ukf = WindUKF({"mass": mass, **coefs}, dt=dt)
     gnss_t = np.array(gnss_t)
@@ -159,7 +174,7 @@ def run_peer(seed: int, duration: float, coefs: dict, mass: float) -> tuple:
         q = Rotation.from_matrix(Rz).as_quat()  # [x, y, z, w]
         out = ukf.step(
             {"w": F @ imu[k][2]},
-            {"cmd_thrust": _thrust(row, p)},
+            {"cmd_thrust": _thrust(row, sim.vehicle)},
             {"accel": F @ imu[k][1]},
             {"q": q, "v": F @ v},
         )
@@ -181,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--seed0", type=int, default=1, help="first seed (benchmark: 1; tuning: e.g. 100)")
     ap.add_argument("--duration", type=float, default=60.0)
-    ap.add_argument("--cases", default="s1,s2,s1p,s2p,s1n")
+    ap.add_argument("--cases", default="s1,s2,s1t5,s2t5,s1ic,s2ic")
+    ap.add_argument("--vehicle", default="nasa-quad", help="vehicle file of the s1/s2 family's world and model")
     ap.add_argument("--no-peer", action="store_true")
     args = ap.parse_args(argv)
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
@@ -197,11 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     results = {}
     for case in args.cases.split(","):
         t0 = time.perf_counter()
-        r = run_case(case, seeds, args.duration)
+        r = run_case(case, seeds, args.duration, args.vehicle)
         results[case] = r
         rec = "-" if r["rec_mean"] is None else f"{r['rec_mean']:.2f}/{r['rec_max']:.2f}"
         print(
-            f"{case:5s} {CASES[case][3]:13s} {np.array2string(r['rmse'], precision=3):20s}"
+            f"{case:5s} {CASES[case][5]:13s} {np.array2string(r['rmse'], precision=3):20s}"
             f" {np.array2string(r['rmse_avg'], precision=3):20s}"
             f" {r['h_avg']:.3f}  {r['dir']:6.2f}  {r['cov']:.3f}  {np.array2string(r['cov_axis'], precision=3):18s}"
             f" {rec:10s} {r['us']:.0f}  1-sigma {r['cov1']:.3f}  ({time.perf_counter() - t0:.0f} s)",
@@ -229,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
         "cov": np.mean([a.coverage_2sigma for a in accs]),
         "rec": [a.reconverge_s for a in accs],
     }
-    print("side by side, paper-s1, exact data, mean over seeds (windseek: calibrated preset):")
+    print("side by side, paper-s1, blade-element world, mean over seeds (windseek: identified model, calibrated):")
     print("estimator           RMSE total N/E/D     RMSE 1-s N/E/D       h 1-s  dir deg  cover  reconv s (mean)")
     if "s1" in results:
         r = results["s1"]

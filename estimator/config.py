@@ -147,6 +147,14 @@ class EstimatorConfig:
         return replace(base, **overrides)
 
     @classmethod
+    def for_vehicle(cls, vehicle: Any, **overrides: Any) -> EstimatorConfig:
+        """The preset a vehicle file calls for: ``calibrated`` when its model was identified for it
+        (``windseek identify`` wrote its fit into ``[model.info]``), ``uncalibrated`` otherwise."""
+        info = getattr(vehicle, "model_info", {}) or {}
+        identified = "fit" in info and str(info.get("source", "")).startswith("windseek identify")
+        return cls.preset("calibrated" if identified else "uncalibrated", **overrides)
+
+    @classmethod
     def preset(cls, name: str, **overrides: Any) -> EstimatorConfig:
         """The preset called ``name`` (one of :data:`PRESETS`)."""
         if name not in PRESETS:

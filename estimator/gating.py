@@ -87,12 +87,13 @@ class InputGate:
         self.mark("rates", t)
         return w.copy()
 
-    def rotors(self, t: float, w_rot: np.ndarray, w_max: float) -> np.ndarray | None:
-        """Rotor speeds (rad/s, 4), each in [0, 2 w_max], or None (rejected and counted)."""
+    def rotors(self, t: float, w_rot: np.ndarray, w_max: float, n: int = 4) -> np.ndarray | None:
+        """Rotor speeds (rad/s, ``n``), each in [0, 2 w_max] (the vehicle's physical range with room for an
+        ESC's overshoot), or None (rejected and counted): a faulty autopilot's 1e9 never reaches the model."""
         w = np.asarray(w_rot, dtype=float)
         if not self.check_time("rotors", t):
             return None
-        if w.shape != (4,) or not within(w, 0.0, 2.0 * w_max):
+        if w.shape != (n,) or not within(w, 0.0, 2.0 * w_max):
             self.reject("rotors:bad_value")
             return None
         self.mark("rotors", t)

@@ -9,15 +9,12 @@ only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to
 - **Lock-on.** It follows one autopilot: the system and component of the first HEARTBEAT whose
   autopilot is not MAV_AUTOPILOT_INVALID (of ``target_system`` if given). Messages from any other
   system or component are counted (``other_system``, ``other_component``) and ignored; a new
-  source is noted once. (A second system on the link once fed the filter: 19.8 m/s of wind.)
-  With ``esc_component`` set, the rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) comes from that
+  source is noted once. With ``esc_component`` set, the rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) comes from that
   component of the autopilot's system instead of the autopilot's own (``windseek sitl --px4``: its
   ESC model is component 158, while PX4 SITL streams a placeholder ESC_STATUS of its own).
 - **Inputs** (``live_select``, ``mavlink_decode``): chosen after ``select_window_s`` of autopilot
   time and stated in one line; decoded to SI. Velocities wait until the IMU has caught up with
-  their time (an autopilot sends its state ahead of the raw samples of the same interval; fed
-  early they would move the filter past samples still to come), at most ``max_pending_velocities``.
-  ``imu_average`` consecutive IMU samples are averaged into one filter step.
+  their time (at most ``max_pending_velocities``); ``imu_average`` IMU samples make one filter step.
 - **Rotor speeds**: ESC telemetry (ESC_STATUS, RAW_RPM; ESC_INFO failure flags block it), or the
   actuator outputs (ACTUATOR_OUTPUT_STATUS, SERVO_OUTPUT_RAW port 0) through ``motor_output``
   and the motor lag, advanced to every IMU sample (a new command acts from the next sample).
@@ -29,14 +26,15 @@ only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to
   ``reset_jump_s`` behind the newest (``reset_confirm`` in a row; a single stale one is dropped
   and counted as ``clock_behind``), or SYSTEM_TIME's time_boot_ms going back, restart the filter
   and the clock bookkeeping (``clock_resets``, ``restarts``); the chosen inputs stay.
-- **Model.** The force model is the vehicle file's. When the autopilot's HEARTBEAT type is not
-  a quadrotor, or the user says the airframe differs (``airframe``), :attr:`model_note` says that
-  the wind is biased by the model mismatch. In steady flight the rotor speeds must produce the
-  measured specific force through the model (``thrust_check``); when they do not (PX4 SIH,
-  another airframe), that is said once, :attr:`model_note` says it, and the wind is **withheld**:
-  :meth:`LiveCore.output` returns None from then on (so nothing publishes WIND_COV and a mission
-  stops on an estimator fault). A biased wind published with a large covariance would still be
-  plotted and used by consumers that ignore the covariance, as most do.
+- **Model.** The force model is the vehicle file's (``--vehicle``). When the autopilot's HEARTBEAT
+  type is not a multirotor with the model's rotor count, or the user says the airframe differs
+  (``airframe``), :attr:`model_note` says that the wind is biased by the model mismatch. In steady
+  flight the model must fit the vehicle (``estimator.model_fit``: the rotors' thrust, and the
+  filter's airspeed inside the model's identified domain); nothing is published until it has been
+  judged to fit, and when it does not (PX4 SIH, another airframe, a wrong mass) that is said once,
+  :attr:`model_note` says it, and the wind is **withheld**: :meth:`LiveCore.output` returns None from
+  then on (so nothing publishes WIND_COV and a mission stops on an estimator fault). A biased wind
+  published with a large covariance would still be used by consumers that ignore the covariance.
 
 Times are the autopilot's boot clock, s; wind = air-mass velocity NED, m/s; covariance (m/s)^2.
 """
@@ -45,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -54,14 +52,16 @@ from estimator import mavlink_decode as dec
 from estimator.config import EstimatorConfig
 from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withheld
 from estimator.live_select import InputSelection
-from estimator.motor_output import SITL_ORDER, OutputMap
+from estimator.model_fit import ModelFit
+from estimator.motor_output import OutputMap
 from estimator.rpm_free import MotorCommandModel
-from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR, ThrustCheck
+from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR
 from estimator.ukf import WindEstimator
 from vehicle.params import VehicleParams
 
 MAV_AUTOPILOT_INVALID = 8
-MAV_TYPE_QUADROTOR = 2
+#: MAV_TYPE of a multirotor by its rotor count (tricopter, quadrotor, hexarotor, octorotor).
+MAV_TYPE_BY_ROTORS = {3: 15, 4: 2, 6: 13, 8: 14}
 #: Rotor telemetry messages (their source can be set apart: ``LiveConfig.esc_component``).
 ESC_TELEMETRY = frozenset({"ESC_STATUS", "RAW_RPM", "ESC_INFO"})
 MAX_NOTED_SOURCES = 8  # other systems/components noted by name; later ones are only counted
@@ -72,12 +72,12 @@ class LiveConfig:
     """Settings of :class:`LiveCore` (see the module docstring)."""
 
     vehicle: VehicleParams
-    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    estimator: EstimatorConfig | None = None  # None: the preset the vehicle file calls for (for_vehicle)
     imu_average: int = 1
     ground_gate: bool = True
     target_system: int | None = None
     esc_component: int | None = None  # rotor telemetry from this component of the target's system (None: its own)
-    esc_order: tuple[int, ...] = SITL_ORDER  # ESC number (0-based) -> rotor index
+    esc_order: tuple[int, ...] | None = None  # ESC number (0-based) -> rotor index (None: the same numbers)
     outputs: OutputMap | None = None  # actuator outputs -> rotor speeds (None: OutputMap.for_vehicle, px4)
     airframe: str | None = None  # the vehicle flown, when it is not the vehicle file's
     select_window_s: float = 1.0
@@ -88,8 +88,9 @@ class LiveConfig:
     def __post_init__(self) -> None:
         if self.imu_average < 1:
             raise ValueError(f"imu_average = {self.imu_average}: must be an integer >= 1")
-        if sorted(self.esc_order) != list(range(len(self.esc_order))):
-            raise ValueError(f"esc_order {self.esc_order}: must be a permutation of 0..{len(self.esc_order) - 1}")
+        n = self.vehicle.n_rotors
+        if self.esc_order is not None and sorted(self.esc_order) != list(range(n)):
+            raise ValueError(f"esc_order {self.esc_order}: must be a permutation of 0..{n - 1}")
 
 
 @dataclass(frozen=True)
@@ -132,7 +133,8 @@ class LiveCore:
         self.landed_state: int | None = None
         self.restarts = 0
         self.model_note: str | None = None
-        self.thrust = ThrustCheck(cfg.vehicle)
+        self.fit = ModelFit(cfg.vehicle)
+        self._esc_order = cfg.esc_order or tuple(range(cfg.vehicle.n_rotors))
         if cfg.airframe:
             self.model_note = self._mismatch(f"the vehicle is {cfg.airframe}")
         self.t = math.nan  # newest autopilot time, s
@@ -153,9 +155,10 @@ class LiveCore:
         """Forget every held input (a fresh filter needs fresh samples)."""
         self._pending: list[tuple[float, np.ndarray]] = []
         self._imu_sum: list[np.ndarray] = []
-        self._esc = np.full(4, np.nan)
-        self._esc_seen = np.zeros(4, dtype=bool)
-        self._esc_failed = np.zeros(4, dtype=bool)
+        n = self.config.vehicle.n_rotors
+        self._esc = np.full(n, np.nan)
+        self._esc_seen = np.zeros(n, dtype=bool)
+        self._esc_failed = np.zeros(n, dtype=bool)
         self._esc_t = -math.inf
         self._cmd: np.ndarray | None = None
         self._w_now: np.ndarray | None = None  # the rotor speeds in force (for the thrust check)
@@ -185,7 +188,7 @@ class LiveCore:
         """The current filter's estimate, or None when it has not estimated anything yet or the wind is
         withheld (the vehicle is not the model's: see the module docstring)."""
         e = self.est
-        if self.thrust.mismatch is not None or e.t is None or e.accepted["imu"] == 0:
+        if not self.fit.judged or e.t is None or e.accepted["imu"] == 0:
             return None
         return LiveOutput(float(e.t), e.wind_ned, e.wind_cov)
 
@@ -193,8 +196,8 @@ class LiveCore:
         """What the estimator is doing, in one line (without the estimate itself)."""
         if self.target is None:
             return "waiting for an autopilot HEARTBEAT"
-        if self.thrust.mismatch is not None:
-            return f"wind withheld: not {self.config.vehicle.name} (thrust ratio {self.thrust.ratio:.2f})"
+        if self.fit.mismatch is not None:
+            return f"wind withheld: not {self.config.vehicle.name}'s model ({self.fit.mismatch.split(':')[0]})"
         if not self.select.selected:
             return f"listening for inputs ({self.select.window_s:g} s of autopilot time)"
         if self.paused():
@@ -335,7 +338,8 @@ class LiveCore:
 
     def _heartbeat(self, msg: Any) -> None:
         mav_type = int(msg.type)
-        if self.autopilot_type is None and self.config.vehicle.n_rotors == 4 and mav_type != MAV_TYPE_QUADROTOR:
+        expected = MAV_TYPE_BY_ROTORS.get(self.config.vehicle.n_rotors, mav_type)
+        if self.autopilot_type is None and mav_type != expected:  # a hexarotor's HEARTBEAT, a quad model
             from wire.dialect import mavlink
 
             entry = mavlink.enums["MAV_TYPE"].get(mav_type)
@@ -345,15 +349,12 @@ class LiveCore:
         self.autopilot_type = mav_type
 
     def _mismatch(self, what: str) -> str:
-        return (f"model mismatch: {what}, but the force model is {self.config.vehicle.name} (the paper's "
-                "quadrotor): the wind estimate is biased by the difference")  # fmt: skip
+        return f"model mismatch: {what}, but the force model is {self.config.vehicle.name}'s: the wind is biased"
 
     def _esc_info(self, msg: Any) -> None:
-        order = self.config.esc_order
         for i, flags in enumerate(msg.failure_flags):
-            k = int(msg.index) + i
-            if k < len(order):
-                self._esc_failed[order[k]] = flags != 0
+            if int(msg.index) + i < len(self._esc_order):
+                self._esc_failed[self._esc_order[int(msg.index) + i]] = flags != 0
 
     # ------------------------------------------------------------------ feeding the filter
     def _feed(self, group: str, mtype: str, msg: Any, t: float) -> None:
@@ -393,29 +394,27 @@ class LiveCore:
             acc, gyr = m[0:3], m[3:6]
         if self._cmd is not None:
             w = self._motor.update(t, self._cmd)  # the motor lag, advanced to this sample
-            if w is not None:
+            if w is not None and self.est.set_rotor_speeds(t, w):  # physical range checked first
                 self._w_now = w
-                self.est.set_rotor_speeds(t, w)
         self.est.imu(t, acc, gyr)
-        if self.thrust.sample(t, acc, gyr, self._w_now, self.landed_state == MAV_LANDED_STATE_IN_AIR):
-            line = self.thrust.mismatch
+        air = self.landed_state == MAV_LANDED_STATE_IN_AIR
+        if self.fit.sample(t, acc, gyr, self._w_now, air, self.est.airspeed_body(), self.est.wind_sigma_h() < 1.0):
+            line = self.fit.mismatch
             self.model_note = line if self.model_note is None else f"{self.model_note}; {line}"
             self.note(str(line))
 
     def _esc_speeds(self, index: int, speeds: list[float], t: float) -> None:
-        order = self.config.esc_order
         for i, w in enumerate(speeds):
-            k = index + i
-            if k < len(order):
-                self._esc[order[k]] = w
-                self._esc_seen[order[k]] = True
+            if index + i < len(self._esc_order):
+                self._esc[self._esc_order[index + i]] = w
+                self._esc_seen[self._esc_order[index + i]] = True
         # Push a complete set once per time stamp: RAW_RPM arrives one rotor per message with no
         # time of its own, so several messages share the latest time seen.
         if not self._esc_seen.all() or self._esc_failed.any() or not t > self._esc_t:
             return
         self._esc_t = t
-        self._w_now = self._esc.copy()
-        self.est.set_rotor_speeds(t, self._w_now)
+        if self.est.set_rotor_speeds(t, self._esc):  # physical range checked first (a 1e9 burst is dropped)
+            self._w_now = self._esc.copy()
 
     def _release_velocities(self) -> None:
         pend = self._pending
@@ -441,8 +440,8 @@ class LiveCore:
             "inputs": dict(self.select.chosen),
             "inputs_line": self.select.inputs_line() if self.select.selected else self.status_line(),
             "model_note": self.model_note,
-            "wind_withheld": self.thrust.mismatch is not None,
-            "thrust_ratio": None if self.thrust.ratio is None else round(self.thrust.ratio, 3),
+            "wind_withheld": self.fit.mismatch is not None,
+            **self.fit.summary(),
             "accepted": dict(e.accepted),
             "rejected": dict(e.rejected),
             "counters": dict(self.counters),

@@ -8,13 +8,19 @@ it published [3.7, -8.4, -19.9] m/s. The check needs no wind estimate:
 - In the air (the autopilot's landed state is IN_AIR), the rotors' vertical force is the vehicle's
   mass times the measured specific force along body z: ``Z = m f_z`` (``f_z`` about -g in hover),
   however the vehicle accelerates. The model's Z at zero airspeed is ``-(a sum(w^2) + b sum(w))``
-  (Eq. 46c; ``a = k C_ZT0 R^2``, ``b = k C_ZTv R v0``, ``k = rho pi R^2``), linear in the rotor
-  speed sums, so samples are averaged cheaply.
+  (Eq. 46's zero-airspeed terms, :func:`vehicle.rotor_model.static_thrust_curve`), linear in the
+  rotor speed sums, so samples are averaged cheaply.
 - The model's Z depends on the airspeed too, which is unknown (the wind is what we estimate). Over
-  the airspeeds the model covers (horizontal up to ``VH_MAX``, vertical up to ``VZ_MAX``: the vehicle
-  file's envelope) the paper's vehicle at hover shows ``ratio = Z0 / (m f_z)`` between
-  :attr:`ThrustCheck.band` (0.94-1.11 for ``nasa_quad``); ``margin`` (10 %) widens that band for
+  the airspeeds the model was identified for, with a 25 % margin (horizontal up to 1.25 times the
+  identified domain's largest 5th/95th percentile of u and v, :func:`model_domain`; body-z within
+  :func:`vertical_domain`), the vehicle at hover shows ``ratio = Z0 / (m f_z)`` between
+  :attr:`ThrustCheck.band` (0.52-1.51 for ``nasa_quad``); ``margin`` (10 %) widens that band for
   sensor bias, rotor-speed error (actuator outputs through the motor model) and turbulence.
+- What it cannot tell: a rotor's thrust grows with airspeed (translational lift, +36 % at 10 m/s for
+  the blade-element nasa_quad) and in descent through the air, so in a strong wind a heavier vehicle
+  reads like a lighter wind. In 10 m/s of wind a vehicle 40 % heavier or lighter than its model is
+  not distinguishable by thrust; in 3 m/s it is; gross mismatches always are (another airframe: PX4
+  SIH's 1 kg quadrotor against the 2.8 kg model).
 - Only steady samples count (body rates under ``max_rate_rad_s``, specific force within
   ``accel_tol_m_s2`` of g: the rotor speeds from actuator outputs lag in manoeuvres), averaged over
   ``window_s`` of autopilot time in the air; ``confirm`` windows in a row outside the band are a
@@ -38,8 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vehicle.params import P_R, P_RHO, P_V0, P_VH_MAX, P_VZ_MAX, VehicleParams, coef_index
-from vehicle.rotor_model import hover_rotor_speed, wrench
+from vehicle.params import VehicleParams
+from vehicle.rotor_model import hover_rotor_speed, static_thrust_curve, wrench
 
 MAV_LANDED_STATE_IN_AIR = 2
 
@@ -54,17 +60,38 @@ class ThrustCheckConfig:
     max_rate_rad_s: float = 0.5
     accel_tol_m_s2: float = 2.0
     margin: float = 0.10
+    steady_vertical_m_s: float = 1.0
 
 
-def model_band(vehicle: VehicleParams) -> tuple[float, float]:
-    """The range of ``Z0 / Z(airspeed)`` at the hover rotor speed over the model's airspeed envelope."""
-    p = vehicle.as_array()
-    om = np.full(4, hover_rotor_speed(vehicle))
+def model_domain(vehicle: VehicleParams) -> float:
+    """The horizontal airspeed (m/s) the model was identified for: the largest magnitude among the 5th and
+    95th percentiles of u and v in its ``[model.info]`` domain; else its saturation (``domain_airspeed``)
+    or, without one, 4 m/s (the paper's Table 3)."""
+    dom = vehicle.model_info.get("domain_p5_p95", {})
+    if "u" in dom and "v" in dom:
+        return float(max(abs(x) for k in ("u", "v") for x in dom[k]))
+    return float(min(vehicle.domain_airspeed_m_s, 4.0) if vehicle.domain_airspeed_m_s < 1e8 else 4.0)
+
+
+def vertical_domain(vehicle: VehicleParams, steady_vertical_m_s: float = 1.0) -> tuple[float, float]:
+    """The body-z airspeeds (m/s) the check allows: +-1.25 times the largest of the identified domain's 5th and
+    95th percentiles of w (a descent or climb through the air the identification flew), at least
+    +-``steady_vertical_m_s``."""
+    w = vehicle.model_info.get("domain_p5_p95", {}).get("w")
+    m = 1.25 * max(abs(float(w[0])), abs(float(w[1]))) if w else 0.0
+    m = max(m, steady_vertical_m_s)
+    return -m, m
+
+
+def model_band(vehicle: VehicleParams, steady_vertical_m_s: float = 1.0) -> tuple[float, float]:
+    """The range of ``Z0 / Z(airspeed)`` at the hover rotor speed over the model's identified envelope."""
+    om = np.full(vehicle.n_rotors, hover_rotor_speed(vehicle))
     z0 = wrench(vehicle, np.zeros(3), np.zeros(3), om)[2]
     ratios = []
-    for vh in np.linspace(0.0, float(p[P_VH_MAX]), 7):
+    w_lo, w_hi = vertical_domain(vehicle, steady_vertical_m_s)
+    for vh in np.linspace(0.0, 1.25 * model_domain(vehicle), 7):
         for ang in np.linspace(0.0, math.pi / 2, 4):
-            for vz in np.linspace(-float(p[P_VZ_MAX]), float(p[P_VZ_MAX]), 7):
+            for vz in np.linspace(w_lo, w_hi, 7):
                 v_air = np.array([vh * math.cos(ang), vh * math.sin(ang), vz])
                 ratios.append(z0 / wrench(vehicle, v_air, np.zeros(3), om)[2])
     return float(min(ratios)), float(max(ratios))
@@ -76,14 +103,11 @@ class ThrustCheck:
 
     def __init__(self, vehicle: VehicleParams, config: ThrustCheckConfig | None = None) -> None:
         self.config = cfg = config or ThrustCheckConfig()
-        p = vehicle.as_array()
-        k = p[P_RHO] * math.pi * p[P_R] ** 2
-        self._a = float(k * p[coef_index("C_Z_T0")] * p[P_R] ** 2)  # N per (rad/s)^2, one rotor
-        self._b = float(k * p[coef_index("C_Z_Tv")] * p[P_R] * p[P_V0])  # N per rad/s, one rotor
+        self._a, self._b = static_thrust_curve(vehicle)  # one rotor: N per (rad/s)^2, N per rad/s
         self.mass = float(vehicle.mass_kg)
         self.g = float(vehicle.gravity_m_s2)
         self.vehicle_name = vehicle.name
-        lo, hi = model_band(vehicle)
+        lo, hi = model_band(vehicle, cfg.steady_vertical_m_s)
         self.band = (lo / (1.0 + cfg.margin), hi * (1.0 + cfg.margin))
         self.ratio: float | None = None  # the last window's ratio
         self.windows = 0
@@ -131,9 +155,10 @@ class ThrustCheck:
         if self.outside < cfg.confirm:
             return False
         more = "faster" if ratio > hi else "slower"
-        self.mismatch = (f"thrust mismatch: in steady flight the rotors spin {more} than {self.vehicle_name} (the "
-                         f"paper's vehicle, {self.mass:g} kg) needs: its model's thrust at these rotor speeds is "
+        self.mismatch = (f"thrust mismatch: in steady flight the rotors spin {more} than {self.vehicle_name} "
+                         f"({self.mass:g} kg) needs: its model's thrust at these rotor speeds is "
                          f"{ratio:.2f} x the measured mass x acceleration (expected {lo:.2f}-{hi:.2f} for any "
                          "airspeed the model covers); this is not the model's vehicle, so the filter would report "
                          "the model error as wind: the wind estimate is withheld")  # fmt: skip
         return True
+

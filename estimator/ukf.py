@@ -90,7 +90,8 @@ class WindEstimator(EstimatorOutputs):
 
     Args:
         params: vehicle parameters the force model uses (exact or ``perturbed``).
-        config: tuning, see :class:`EstimatorConfig`.
+        config: tuning, see :class:`EstimatorConfig` (default: the preset the vehicle file calls for,
+            :meth:`EstimatorConfig.for_vehicle`).
 
     Usage::
 
@@ -103,7 +104,8 @@ class WindEstimator(EstimatorOutputs):
     """
 
     def __init__(self, params: VehicleParams, config: EstimatorConfig | None = None) -> None:
-        self.config = cfg = config or EstimatorConfig()
+        self.config = cfg = config or EstimatorConfig.for_vehicle(params)
+        self.n_rotors = params.n_rotors
         self.params = params
         self._p = params.as_array()
         n = 6
@@ -183,7 +185,7 @@ class WindEstimator(EstimatorOutputs):
 
     def set_rotor_speeds(self, t: float, w_rot: np.ndarray) -> bool:
         """Rotor speeds (rad/s, rotor order of ``vehicle.rotor_model``). Held until the next sample."""
-        w = self._gate.rotors(t, w_rot, float(self._p[P_WMAX]))
+        w = self._gate.rotors(t, w_rot, float(self._p[P_WMAX]), self.n_rotors)
         if w is None:
             return False
         self._w_rot = w
@@ -372,6 +374,22 @@ class WindEstimator(EstimatorOutputs):
         else:
             self._firing_s = 0.0
             self._wind_q_gain = 1.0
+
+    @property
+    def rotor_speeds(self) -> np.ndarray | None:
+        """The rotor speeds in force (rad/s, the last accepted sample)."""
+        return self._w_rot
+
+    def wind_sigma_h(self) -> float:
+        """The larger horizontal wind 1-sigma of the filter (m/s): how far it has converged."""
+        return float(math.sqrt(max(self.P[3, 3], self.P[4, 4])))
+
+    def airspeed_body(self) -> np.ndarray | None:
+        """The filter's airspeed (FRD, m/s): body ground velocity minus the wind in body axes; None before
+        it has an attitude."""
+        if self._R is None:
+            return None
+        return np.asarray(self.x[0:3] - self._R.T @ self.x[3:6])
 
     def _record_history(self) -> None:
         if self._R is None or self.t is None:

@@ -219,7 +219,7 @@ class EstimatorWorker:
             status=core.status_line(),
             inputs_line=core.select.inputs_line() if core.select.selected else None,
             model_note=core.model_note,
-            withheld=core.thrust.mismatch,
+            withheld=core.fit.mismatch,
             restarts=core.restarts,
             counters={**dict(core.counters), **counts},
             accepted=dict(e.accepted),

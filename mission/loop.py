@@ -71,6 +71,8 @@ class MissionWind(Protocol):
 #: Vehicle seconds after an accepted switch to offboard within which a HEARTBEAT must show it (they come
 #: at 1 Hz, and several in a row may be lost on a bad link).
 OFFBOARD_CONFIRM_S = 5.0
+#: How long the runner keeps asking for offboard control while the autopilot denies it (s of vehicle time).
+OFFBOARD_RETRY_S = 3.0
 
 
 @dataclass
@@ -182,6 +184,7 @@ class MissionLoop:
         searching = False
         offboard = False
         t_off0, n0 = math.nan, 0
+        t_ask, t_first_ask = -math.inf, math.nan  # offboard requests: the next allowed, the first made
         path, prev = 0.0, None
         chem_seen = -1  # the first tick sees the newest reading as new: the strategy has not seen it
         while True:
@@ -219,11 +222,18 @@ class MissionLoop:
                 continue
             sp = self._strategy_tick(t, chem_new, path)
             self._send(sp)
-            if not offboard:
+            if not offboard and t >= t_ask:
                 try:  # PX4 wants the setpoint stream before the mode switch: one was just sent
                     await self.v.start_offboard()
                 except CommandError as e:
-                    return Abort("offboard-rejected", f"the autopilot rejected offboard control: {e}")
+                    # On a lossy link the setpoints may not have arrived yet: MAVSDK repeats the last one
+                    # at 20 Hz, so ask again every 0.5 s, for OFFBOARD_RETRY_S at most.
+                    t_first_ask = t if math.isnan(t_first_ask) else t_first_ask
+                    if t - t_first_ask >= OFFBOARD_RETRY_S:
+                        return Abort("offboard-rejected", f"the autopilot rejected offboard control for "
+                                     f"{t - t_first_ask:.1f} s: {e}")  # fmt: skip
+                    t_ask = t + 0.5
+                    continue
                 offboard, t_off0, n0 = True, t, res.setpoints
             if t > t_off0:
                 res.setpoint_rate_hz = round((res.setpoints - n0) / (t - t_off0), 2)

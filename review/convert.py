@@ -28,7 +28,7 @@ from review.rrd import write_rrd
 from review.summary import missing_inputs, summarize
 from review.trust import Trust, trust_mask
 from review.vehicle_info import model_caveat
-from vehicle.params import load_vehicle
+from vehicle.vehicle_file import load_vehicle
 
 
 def read_flight(path: Path | str, motor_order: str = "auto", w_max_rad_s: float | None = None,

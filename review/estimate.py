@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from estimator.model_fit import ModelFit
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import EstimatorConfig, WindEstimator
 from review.flight import FlightData, Series
@@ -60,6 +61,8 @@ class EstimatorTrack:
     imu_rate_used_hz: float = 0.0  # the rate the filter ran at (lower when decimated)
     gap_cuts: int = 0  # airborne segments cut at IMU gaps longer than MAX_IMU_GAP_S
     rejected: Counter[str] = field(default_factory=Counter)
+    #: Does the model fit this vehicle? (``estimator.model_fit.ModelFit.summary`` and its mismatch line.)
+    model_fit: dict[str, object] = field(default_factory=dict)
 
     @property
     def decimated(self) -> bool:
@@ -120,9 +123,10 @@ def _events(fd: FlightData, imu: Series, a: float, b: float, use_cmd: bool) -> t
 
 def _run_segment(est: WindEstimator, motor: MotorCommandModel, parts: list[Series], ev: np.ndarray,
                  seg: tuple[float, float], dt_out: float, out: list[np.ndarray],
-                 tick: Callable[[int], None] | None = None) -> int:  # fmt: skip
+                 tick: Callable[[int], None] | None = None, fit: ModelFit | None = None) -> int:  # fmt: skip
     """Feed one segment's events; append output rows (every ``dt_out`` s); return the IMU steps taken.
-    ``tick(n)`` is called every :data:`TICK_EVENTS` events with the number of events fed since the last call."""
+    ``tick(n)`` is called every :data:`TICK_EVENTS` events with the number of events fed since the last call;
+    ``fit`` judges the model on every IMU step (the segment is airborne)."""
     steps, t_next = 0, -math.inf
     att, rot, cmd, imu, vel = parts
     for n, (k, i) in enumerate(ev.tolist()):
@@ -133,6 +137,9 @@ def _run_segment(est: WindEstimator, motor: MotorCommandModel, parts: list[Serie
             g = imu.v[i, 3:6]
             if est.imu(t, imu.v[i, :3], None if np.isnan(g[0]) else g):
                 steps += 1
+                if fit is not None:
+                    converged = est.wind_sigma_h() < 1.0
+                    fit.sample(t, imu.v[i, :3], g, est.rotor_speeds, True, est.airspeed_body(), converged)
                 e = est.estimate()
                 if t >= t_next:
                     t_next = t + dt_out
@@ -165,7 +172,7 @@ def run_estimator(
     ``imu_rate_hz``: None (auto: decimate only above :data:`MAX_IMU_SAMPLES` airborne samples),
     0 (never), or the IMU rate [Hz] to decimate to.
     """
-    config = config or EstimatorConfig()
+    config = config or EstimatorConfig.for_vehicle(params)
     n_imu, rate_in = airborne_imu(fd)
     target = imu_rate_hz
     if target is None:
@@ -188,16 +195,18 @@ def run_estimator(
         if progress is not None:
             progress(min(done[0] / total, 1.0))
 
+    fit = ModelFit(params)
     for seg, (parts, ev) in zip(segs, events, strict=True):
         est = WindEstimator(params, config)
         motor = MotorCommandModel(params.motor_time_constant_s, params.rotor_speed_max_rad_s)
-        steps += _run_segment(est, motor, parts, ev, seg, 1.0 / rate_hz, rows, tick)
+        steps += _run_segment(est, motor, parts, ev, seg, 1.0 / rate_hz, rows, tick, fit)
         rejected.update(est.rejected)
     a = np.array(rows) if rows else np.zeros((0, 11))
     return EstimatorTrack(
         t=a[:, 0], segment_start=a[:, 1], wind=a[:, 2:5], sigma=a[:, 5:8], speed=a[:, 8],
         direction_deg=a[:, 9], direction_filtered_deg=a[:, 10], imu_steps=steps, imu_rate_in_hz=rate_in,
         imu_rate_used_hz=rate_used, gap_cuts=cuts, rejected=rejected,
+        model_fit={**fit.summary(), "model_note": fit.mismatch},
     )  # fmt: skip
 
 

@@ -76,7 +76,8 @@ def summarize(fd: FlightData, track: EstimatorTrack | None, trust: Trust | None,
     s.update(settle_s=settle_s, min_height_m=min_height_m if len(fd.position) else None, imu_steps=track.imu_steps,
              samples_total=len(track.t), samples_settling=trust.settling, samples_near_ground=trust.near_ground,
              imu_rate_hz=round(track.imu_rate_in_hz, 1), imu_rate_used_hz=round(track.imu_rate_used_hz, 1),
-             imu_decimated=track.decimated, imu_gap_cuts=track.gap_cuts, rejected=dict(track.rejected))  # fmt: skip
+             imu_decimated=track.decimated, imu_gap_cuts=track.gap_cuts, rejected=dict(track.rejected),
+             model_fit=track.model_fit)  # fmt: skip
     if not trust.ok.any():
         s["wind_figure_reason"] = no_figure_reason(fd, track, trust, settle_s, min_height_m)
         return s
@@ -136,6 +137,11 @@ def format_summary(s: dict[str, Any]) -> str:
                      "(and its settling time) after each")  # fmt: skip
     if s.get("model"):
         lines.append(s["model"])
+    fit = s.get("model_fit") or {}
+    if fit:
+        verdict = ("fits this vehicle" if fit.get("model_fits") else
+                   fit.get("model_note") or "not judged (too little steady flight)")  # fmt: skip
+        lines.append(f"model in use: {fit.get('model')} ({fit.get('model_source')}): {verdict}")
     if s["wind_figure"]:
         lines += _wind_lines(s)
     else:

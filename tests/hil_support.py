@@ -25,7 +25,6 @@ from sitl.hil.px4_link import SimLink, TcpSimLink
 from sitl.hil.runner import HilOptions, HilRunner
 from sitl.scenario import Scenario, parse_scenario
 from sitl.world.kernel import FLAG_ON_GROUND
-from vehicle.rotor_model import hover_rotor_speed
 
 ARMED = 128 | 1  # MAV_MODE_FLAG_SAFETY_ARMED | CUSTOM_MODE_ENABLED, as PX4 sends it
 DISARMED = 1
@@ -46,7 +45,7 @@ def scenario(**extra: Any) -> Scenario:
 
 def hover_output(bridge: HilBridge) -> float:
     """The PX4 motor output that commands the hover rotor speed."""
-    return float(hover_rotor_speed(bridge.world.vehicle) / bridge.motors.omega_max)
+    return float(bridge.world.vehicle.control["hover_speed"] / bridge.motors.omega_max)
 
 
 def place_in_air(bridge: HilBridge, height_m: float) -> None:
@@ -54,7 +53,7 @@ def place_in_air(bridge: HilBridge, height_m: float) -> None:
     ph = bridge.world.phys
     ph.x[2] = -float(height_m)
     ph.x[3:6] = 0.0
-    ph.x[13:17] = hover_rotor_speed(bridge.world.vehicle)
+    bridge.world.set_hover_rotors()
     ph.flags[FLAG_ON_GROUND] = 0.0
 
 

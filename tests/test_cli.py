@@ -79,5 +79,6 @@ def test_a_subcommand_imports_only_its_own_module():
     assert out.strip().splitlines()[-1] == "['windseek.cmd_link_proxy']", out
     full = subprocess.run([sys.executable, "-m", "windseek.cli", "--help"], capture_output=True, text=True, timeout=60)
     listed = [ln.split()[0] for ln in full.stdout.splitlines() if ln.startswith("    ") and ln[4] != " "]
-    assert listed == ["sim", "search", "campaign", "estimate", "sitl", "mission", "review", "estimator", "demo",
+    assert listed == ["sim", "search", "campaign", "estimate", "identify", "sitl", "mission", "review", "estimator",
+                      "demo",
                       "link-proxy"], full.stdout

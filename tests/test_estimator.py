@@ -21,8 +21,8 @@ from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import load_scenario
 from sitl.world.wind import SteadyWind, WindChange
 from vehicle.frames import euler_to_quat
-from vehicle.params import load_vehicle
 from vehicle.rotor_model import hover_rotor_speed
+from vehicle.vehicle_file import load_vehicle
 from wire.dialect import mavlink
 
 
@@ -33,6 +33,11 @@ def _steady(wind, duration, changes=()):
     )
 
 
+#: The paper's vehicle flying its own Table 5 model (truth = "model"): where a test is about the filter's
+#: mechanics with an exact model, not about how well a model fits a vehicle (benchmarks/wind_accuracy.py).
+EXACT = "nasa-quad-table5"
+
+
 # ------------------------------------------------------------------ filter behaviour in the loop
 def test_cold_start_converges_on_constant_wind():
     runner = InProcessRunner(_steady((-6.0, 3.0, 0.0), 8.0), seed=2)
@@ -40,16 +45,17 @@ def test_cold_start_converges_on_constant_wind():
     assert np.all(e0.wind_ned == 0.0) and e0.sigma_ned.min() >= 10.0, "starts from no prior (zero wind, 10 m/s)"
     log = runner.run()
     # The first sample updates, but cannot tell the wind from the unknown ground velocity (2 m/s prior).
-    assert log.wind_sigma[0, :2].min() > 2.0
+    assert log.wind_sigma[0, :2].min() > 0.8
     late = log.t > 4.0
     err = log.wind_est[late] - log.wind_true[late]
-    # 0.35, not the exact-model goal 0.3: the force scale is released ~1.5 s after the start
-    # (EstimatorConfig.scale_hold_s) and takes part of the cold-start transient for a few
-    # seconds (4-8 s here, seeds 1-6: 0.21-0.38 m/s; released at 3 s: 0.16-0.30 m/s).
-    assert np.sqrt(np.mean(err[:, 0] ** 2 + err[:, 1] ** 2)) < 0.35
+    # 0.5: the blade-element world against the identified model, whose steady drag at 5-7 m/s is
+    # ~0.03 m/s^2 short of the truth's (0.3 m/s of wind at this airspeed: benchmarks/README.md,
+    # "Identification"), and the force scale takes part of the cold-start transient (released ~1.5 s
+    # after the start, EstimatorConfig.scale_hold_s).
+    assert np.sqrt(np.mean(err[:, 0] ** 2 + err[:, 1] ** 2)) < 0.5
     assert np.all(log.wind_sigma[late, :2] < 0.5)
     d = from_direction_deg(log.wind_est[late, 0], log.wind_est[late, 1])
-    assert np.sqrt(np.mean(angle_diff_deg(d, from_direction_deg(-6.0, 3.0)) ** 2)) < 3.0
+    assert np.sqrt(np.mean(angle_diff_deg(d, from_direction_deg(-6.0, 3.0)) ** 2)) < 4.5  # 0.5 m/s at 6.7 m/s
 
 
 def test_tracks_a_wind_step():
@@ -70,8 +76,8 @@ def test_tracks_a_wind_step():
 def test_wind_step_does_not_move_the_force_scale():
     """Exact model, steady horizontal wind stepping by 7 m/s: the scale (driven by the vertical
     axis, frozen in transients) stays near 1 and the vertical wind near 0."""
-    sc = _steady((-8.0, 0.0, 0.0), 12.0, [WindChange(6.0, (-4.0, -6.0, 0.0))])
-    r = InProcessRunner(sc, seed=4)
+    sc = replace(_steady((-8.0, 0.0, 0.0), 12.0, [WindChange(6.0, (-4.0, -6.0, 0.0))]), vehicle=EXACT)
+    r = InProcessRunner(sc, seed=4, config=EstimatorConfig.uncalibrated())
     log = r.run()
     s, s_sig = r.estimator.force_scale
     assert r.estimator.scale_released and 0.0 < s_sig < 0.05
@@ -88,7 +94,8 @@ def test_perturbed_model_force_scale_and_horizontal_accuracy():
     the force scale moves towards the true/model force ratio and the horizontal 1-s error stays
     within the perturbed-model goal (0.45 m/s) on a short paper-s1 run."""
     for seed in (4, 5):
-        r = InProcessRunner(load_scenario("paper-s1").with_duration(20.0), seed=seed, perturb_model=True)
+        sc = replace(load_scenario("paper-s1").with_duration(20.0), vehicle=EXACT)
+        r = InProcessRunner(sc, seed=seed, perturb_model=True)
         log = r.run()
         ratio = r.params.mass_kg / r.sim.vehicle.mass_kg  # m_model / m_true
         assert abs(ratio - 1.0) > 0.015
@@ -118,7 +125,9 @@ def test_presets_structure_and_selection():
     assert not cal.scale_state and cal.vertical_wind_tau_s is None and cal.bias_axes == (2,)
     est = WindEstimator(load_vehicle(), cal)
     assert est.n == 7 and list(est._bias_idx) == [-1, -1, 6] and est.force_scale == (1.0, 0.0)
-    assert WindEstimator(load_vehicle()).n == 7 and WindEstimator(load_vehicle())._i_scale == 6
+    exact = load_vehicle(EXACT)  # the paper's Table 5: not identified by windseek for this vehicle
+    assert WindEstimator(exact).n == 7 and WindEstimator(exact)._i_scale == 6
+    assert WindEstimator(load_vehicle()).config == cal  # nasa_quad's model was identified (windseek identify)
     assert EstimatorConfig.calibrated(bias_axes=(0, 2)).bias_axes == (0, 2)
     with pytest.raises(ValueError):
         EstimatorConfig.preset("factory")
@@ -136,7 +145,7 @@ def test_calibrated_preset_exact_model_accuracy():
     the S1 goal (0.6 m/s) and the horizontal one within 0.3 m/s, with honest coverage; only
     the z bias is estimated and it stays within about two prior sigmas."""
     for seed in (1, 3):
-        sc = load_scenario("paper-s1").with_duration(16.0)
+        sc = replace(load_scenario("paper-s1").with_duration(16.0), vehicle=EXACT)
         r = InProcessRunner(sc, seed=seed, config=EstimatorConfig.calibrated())
         log = r.run()
         a = accuracy(log.t, log.wind_est, log.wind_sigma, log.wind_true, warmup_s=6.0)

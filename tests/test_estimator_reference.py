@@ -51,7 +51,7 @@ def test_sigma_points_and_weights_match_filterpy() -> None:
 
 def test_wind_filter_equals_filterpy_ukf_on_flight_data(flight) -> None:
     truth, imu, esc, gnss = flight
-    from vehicle.params import load_vehicle
+    from vehicle.vehicle_file import load_vehicle
 
     cfg = EstimatorConfig.preset("calibrated", transient_wind_q_gain=1.0)
     est = WindEstimator(load_vehicle(), cfg)

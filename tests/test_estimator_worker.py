@@ -17,7 +17,7 @@ from estimator_stream import Flight, autopilot_messages, over_the_wire, record
 
 from estimator.live import LiveConfig, LiveCore
 from estimator.worker import EstimatorWorker
-from vehicle.params import load_vehicle
+from vehicle.vehicle_file import load_vehicle
 
 
 @pytest.fixture(scope="module")

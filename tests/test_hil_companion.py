@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 from estimator.live import LiveConfig, LiveCore
-from vehicle.params import load_vehicle
+from vehicle.vehicle_file import load_vehicle
 from wire.dialect import mavlink
 
 

@@ -87,8 +87,12 @@ def test_hover_take_off_transient_is_not_plotted_as_wind(reviews: dict[str, Revi
     _, down = log.scalars("wind/down/estimate")
     assert len(down) == s["samples_scored"] and np.abs(down).max() < 10.0
     _, bad = log.scalars("extra/untrusted_wind_m_s/down")
-    assert len(bad) == s["samples_total"] - s["samples_scored"] and bad.min() < -30.0  # the take-off transient
-    assert abs(s["wind_mean_ned_ms"][2]) < 2.0
+    # The take-off transient (the identified model meets PX4's 1.5 kg Iris: a wind of -11 m/s, never scored).
+    assert len(bad) == s["samples_total"] - s["samples_scored"] and bad.min() < -5.0
+    # PX4's SITL quadrotor is not nasa-quad: the review says the model does not fit (the wind that would
+    # explain its forces is a 5 m/s vertical airspeed the identification never flew), not a wind.
+    fit = s["model_fit"]
+    assert fit["model"] == "nasa-quad" and fit["model_fits"] is False and "never identified" in fit["model_note"]
 
 
 def test_review_counts_time_from_the_log_start(reviews: dict[str, ReviewResult]) -> None:

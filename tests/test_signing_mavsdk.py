@@ -22,6 +22,7 @@ import pytest
 from link_support import autopilot, first, free_port, running, udp_to, wait_until
 
 from mission.runners.autopilot import find_autopilot
+from sitl.scenario import load_scenario
 from wire import signing
 from wire.dialect import mavlink as M  # noqa: N812
 from wire.signing_bridge import SigningBridge, strip_signature
@@ -103,7 +104,8 @@ def test_estimator_signs_its_wind_cov(tmp_path: Path) -> None:
     key_file = tmp_path / "key.hex"
     key_file.write_text(KEY.secret.hex())
     port = free_port()
-    with running([udp_to(port)], signing_key=KEY) as link:
+    # Hovering from the start (paper-s1): the estimator publishes once it has judged the model to fit.
+    with running([udp_to(port)], sc=load_scenario("paper-s1"), signing_key=KEY) as link:
         got: dict[str, Any] = {"authentic": 0, "other": 0}
 
         def on_rx(msg: Any, _lk: Any) -> None:
@@ -113,7 +115,7 @@ def test_estimator_signs_its_wind_cov(tmp_path: Path) -> None:
         link.endpoint.rx_hooks.append(on_rx)
         res = subprocess.run(
             [sys.executable, "-m", "windseek.cli", "estimator", "--connect", f"udpin://127.0.0.1:{port}",
-             "--signing-key", str(key_file), "--duration", "8", "--no-ground-gate", "--json",
+             "--signing-key", str(key_file), "--duration", "10", "--json",
              "--connect-timeout", "60", "--link-timeout", "20"],
             capture_output=True, text=True, timeout=240, cwd=ROOT)  # fmt: skip
     assert res.returncode == 0, res.stderr[-3000:]

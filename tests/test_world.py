@@ -77,9 +77,9 @@ def test_rotor_commands_replayed_from_outside_give_the_builtin_flight_bit_for_bi
     truth = sim.truth_array()
     world = World(scenario, seed=2)
     world.phys.x[:] = sim_start_state(scenario)
-    cmd = RotorCommand()
+    cmd = RotorCommand(world.n_rotors)
     for row in truth:
-        cmd.set(row[T_ROTOR_CMD])
+        cmd.set(row[T_ROTOR_CMD][: world.n_rotors])
         world.step(1, cmd)
     assert np.array_equal(world.position, sim.position)
     assert np.array_equal(world.x, sim.x)

@@ -19,6 +19,8 @@ COMMANDS = [
     "windseek.cmd_search",
     "windseek.cmd_campaign",
     "windseek.cmd_estimate",
+    # issue 29: the paper's system identification, for any vehicle
+    "windseek.cmd_identify",
     "windseek.cmd_sitl",
     "windseek.cmd_mission",
     "windseek.cmd_review",

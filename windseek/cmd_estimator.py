@@ -122,7 +122,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def make_core(args: argparse.Namespace) -> LiveCore:
     """The live core the command line describes (errors are one-line ValueErrors)."""
     from estimator.motor_output import MOTOR_ORDERS, OutputMap
-    from vehicle.params import load_vehicle
+    from vehicle.vehicle_file import load_vehicle
 
     if not (math.isfinite(args.rate) and args.rate > 0):
         raise ValueError(f"--rate {args.rate}: must be > 0")

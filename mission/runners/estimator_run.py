@@ -25,8 +25,9 @@ from estimator.models import AhrsErrorModel, model_params
 from estimator.rpm_free import MotorCommandModel
 from estimator.ukf import EstimatorConfig, WindEstimator
 from sitl.scenario import Scenario
-from sitl.simulation import T_QUAT, T_ROTOR_CMD, T_TIME, T_WIND, Simulation
+from sitl.simulation import N_TRUTH, T_QUAT, T_ROTOR_CMD, T_TIME, T_WIND, Simulation
 from vehicle.frames import quat_mul
+from vehicle.params import VehicleParams
 
 
 @dataclass
@@ -54,6 +55,8 @@ class InProcessRunner:
         no_rpm: ignore ESC telemetry; rotor speeds implied by the motor commands (rpm_free).
         config: estimator tuning.
         ahrs: attitude measurement error model.
+        model: the estimator's force model (a vehicle file's [model], e.g. an identified one); default the
+            world's vehicle file's own.
     """
 
     def __init__(
@@ -64,10 +67,12 @@ class InProcessRunner:
         no_rpm: bool = False,
         config: EstimatorConfig | None = None,
         ahrs: AhrsErrorModel | None = None,
+        model: VehicleParams | None = None,
     ) -> None:
         self.sim = Simulation(scenario, seed=seed, record_truth=True)
         seed = self.sim.seed
-        self.params = model_params(self.sim.vehicle, seed, perturb_model)
+        base = self.sim.vehicle if model is None else self.sim.vehicle.with_model_of(model)
+        self.params = model_params(base, seed, perturb_model)
         self.estimator = WindEstimator(self.params, config)
         self.no_rpm = no_rpm
         self.motor = MotorCommandModel(self.params.motor_time_constant_s, self.params.rotor_speed_max_rad_s)
@@ -107,7 +112,7 @@ class InProcessRunner:
             raise RuntimeError("the simulation records no truth (record_truth=False)")
         rows = log[self._truth_idx :]
         self._truth_idx = len(log)
-        truth = np.concatenate(rows) if rows else np.zeros((0, 28))
+        truth = np.concatenate(rows) if rows else np.zeros((0, N_TRUTH))
         esc = list(out["esc"])
         self._pending_gnss.extend(out["gnss"])
         est = self.estimator
@@ -121,7 +126,7 @@ class InProcessRunner:
             q_meas = self._attitude_measurement(row[T_QUAT], dt_imu)
             c0 = time.perf_counter()
             if self.no_rpm:
-                w = self.motor.update(t, row[T_ROTOR_CMD])
+                w = self.motor.update(t, row[T_ROTOR_CMD][: self.params.n_rotors])
                 if w is not None:
                     est.set_rotor_speeds(t, w)
             else:

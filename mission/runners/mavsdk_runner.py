@@ -45,7 +45,7 @@ from mission.strategies.params import CommonParams, load_params
 from mission.vehicle import CommandError
 from mission.wind_modes import LIVE_WIND_MODES
 from mission.wind_source import UpwindFilter
-from vehicle.params import load_vehicle
+from vehicle.vehicle_file import load_vehicle
 
 #: PX4's data-link-loss action parameter (INT32 on PX4) and the value the runner needs: land.
 DLL_PARAM, DLL_LAND = "NAV_DLL_ACT", 3

@@ -15,7 +15,7 @@ from sitl.autopilot.controller import GAIN_NAMES, N_CTRL_STATE, ControllerGains
 from sitl.autopilot.flight_modes import FlightConfig, FlightController
 from sitl.autopilot.fused import advance_controlled
 from sitl.world.world import World
-from vehicle.rotor_model import hover_rotor_speed
+from vehicle.params import MAX_ROTORS
 
 #: How long the captive trim of an airborne start runs (simulated s at t = 0; time does not advance).
 TRIM_S = 6.0
@@ -38,6 +38,10 @@ class BuiltinAutopilot:
         self.gains = gains.as_array()
         self.cs = np.zeros(N_CTRL_STATE)
         self.accel_sp = np.zeros(3)
+        #: An excitation added to the squared rotor-speed commands from physics tick ``excitation_tick0``
+        #: on (see :func:`sitl.autopilot.fused.advance_controlled`); none by default.
+        self.excitation = np.zeros((0, MAX_ROTORS))
+        self.excitation_tick0 = 0
 
     # ------------------------------------------------------------------ Pilot
     def on_slow_tick(self, world: World) -> None:
@@ -48,7 +52,15 @@ class BuiltinAutopilot:
         ph = world.phys
         return advance_controlled(n, world.tick, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div,
                                   ph.rows, ph.fb, world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs,
-                                  self.accel_sp)  # fmt: skip
+                                  self.accel_sp, self.excitation, self.excitation_tick0)  # fmt: skip
+
+    def set_excitation(self, dw2: np.ndarray, tick0: int) -> None:
+        """Add ``dw2`` (K, N rotors; rad^2/s^2) to the squared rotor-speed commands of physics ticks
+        ``tick0 .. tick0 + K - 1`` (the system identification's input, :mod:`identify.fly_world`)."""
+        table = np.zeros((dw2.shape[0], MAX_ROTORS))
+        table[:, : dw2.shape[1]] = dw2
+        self.excitation = table
+        self.excitation_tick0 = int(tick0)
 
     # ------------------------------------------------------------------ set-up
     def start_hovering(self, world: World) -> None:
@@ -60,7 +72,7 @@ class BuiltinAutopilot:
         so a run starts in steady hover instead of being blown off its point.
         """
         ph = world.phys
-        ph.x[13:17] = hover_rotor_speed(world.vehicle)
+        world.set_hover_rotors()
         ph.flags[0] = 0.0
         self.fc.start_in_air(ph.x[0:3])
         slow_dt = world.slow_div * world.dt
@@ -71,7 +83,7 @@ class BuiltinAutopilot:
         for _ in range(int(round(TRIM_S / ph.dt))):
             advance_controlled(1, 0, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div, rows, ph.fb,
                                world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs,
-                               self.accel_sp)  # fmt: skip
+                               self.accel_sp, np.zeros((0, MAX_ROTORS)), 0)  # fmt: skip
             # The stand measures the acceleration it prevents and trims the velocity-loop
             # integrators against it, so the release finds the vehicle already leaning in.
             accel = (ph.x[3:6] - hold[3:6]) / ph.dt

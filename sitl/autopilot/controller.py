@@ -1,5 +1,10 @@
 """Built-in flight controller: cascaded position -> velocity -> attitude -> rate control and
-allocation to rotor speeds through the inverse of the Eq. 42 mixing (numba, runs every tick).
+allocation to rotor speeds (numba, runs every tick).
+
+What it knows of its vehicle is what a flight controller is tuned with, derived from the vehicle's
+truth at load (:func:`vehicle.truth.with_control_figures`): each rotor's static thrust curve
+``T = kt2 w^2 + kt1 w``, the rotors' positions and spins, their torque-to-thrust ratio, the rate
+damping at hover, the mass and the inertia. It never reads the identified model (the estimator's).
 
 Frames and units: NED world, FRD body, SI. The controller reads the true state (the SITL
 stands in for the autopilot's own state estimator; documented assumption) and a setpoint
@@ -28,30 +33,19 @@ from numba import njit
 
 from vehicle.frames import dcm_to_quat, quat_mul
 from vehicle.params import (
-    P_B,
+    MAX_ROTORS,
+    P_ALLOC0,
+    P_DAMP_P,
     P_G,
     P_IXX,
     P_IYY,
     P_IZZ,
+    P_KT1,
+    P_KT2,
     P_MASS,
-    P_R,
-    P_RHO,
-    P_V0,
+    P_NROT,
     P_WMAX,
     P_WMIN,
-)
-from vehicle.rotor_model import (
-    _CL_P_DT,
-    _CL_T0,
-    _CL_TV,
-    _CM_Q_DT,
-    _CM_T0,
-    _CM_TV,
-    _CN_Q0,
-    _CN_QV,
-    _CN_R_DT,
-    _CZ_T0,
-    _CZ_TV,
 )
 
 SP_POS, SP_VEL, SP_ACC, SP_YAW, SP_YAWRATE, SP_FLAGS, SP_ATT, SP_THRUST = 0, 3, 6, 9, 10, 11, 12, 16
@@ -126,13 +120,13 @@ def control(
     dt: float,
     out_accel_sp: np.ndarray,
 ) -> np.ndarray:
-    """One controller update. Returns rotor speed commands (4,), rad/s.
+    """One controller update. Returns rotor speed commands (MAX_ROTORS,), rad/s.
 
     ``cs`` is the controller memory (integrators), updated in place. ``out_accel_sp``
     receives the commanded NED acceleration (m/s^2) for telemetry.
     """
     flags = int(sp[SP_FLAGS])
-    w_cmd = np.zeros(4)
+    w_cmd = np.zeros(MAX_ROTORS)
     if flags & F_OFF:
         cs[:] = 0.0
         out_accel_sp[:] = 0.0
@@ -226,78 +220,60 @@ def control(
     mom = inertia * ang_acc
     iw = inertia * rates
     mom += np.cross(rates, iw)
-    w_bar = _hover_speed_for_thrust(thrust, p)
-    k = p[P_RHO] * math.pi * p[P_R] ** 2
-    b, R, v0 = p[P_B], p[P_R], p[P_V0]
-    # The identified model damps body rates strongly (yaw above all): feed the damping
-    # at the rate setpoint forward so the PI loop only corrects the residual.
-    mom[0] -= k * p[_CL_P_DT] * b * b * rate_sp[0] * 4.0 * w_bar
-    mom[1] -= k * p[_CM_Q_DT] * b * b * rate_sp[1] * 4.0 * w_bar
-    mom[2] -= k * p[_CN_R_DT] * b * b * rate_sp[2] * 4.0 * w_bar
-    # --- allocation: moments per unit of linear rotor-speed mix (Eq. 41) at w_bar.
-    e_a = k * b * R * (p[_CL_T0] * R * 2.0 * w_bar - p[_CL_TV] * v0)
-    e_e = k * b * R * (p[_CM_T0] * R * 2.0 * w_bar + p[_CM_TV] * v0)
-    e_r = k * (p[_CN_Q0] * R ** 3 * 2.0 * w_bar + p[_CN_QV] * R * R * v0)
-    ra = mom[0] / e_a
-    re = mom[1] / e_e
-    rr = mom[2] / e_r
-    return allocate(w_bar, ra, re, rr, p[P_WMIN], p[P_WMAX], w_cmd)
+    # The rotors damp body rates (blade flapping, inflow): feed the damping at the rate setpoint
+    # forward so the PI loop only corrects the residual.
+    for i in range(3):
+        mom[i] -= p[P_DAMP_P + i] * rate_sp[i]
+    return allocate(thrust, mom, p, w_cmd)
 
 
 @njit(cache=True)
-def allocate(
-    w_bar: float, ra: float, re: float, rr: float, wmin: float, wmax: float, out: np.ndarray
-) -> np.ndarray:
-    """Rotor speeds = w_bar + MIX^-1 [0, ra, re, rr] with saturation handling: yaw is given
-    up first, then roll/pitch is scaled, then the collective shifts (attitude over thrust)."""
-    # MIX^-1 = MIX^T / 4; columns of MIX^T for (ra, re, rr) per rotor:
-    ca = (-0.25, -0.25, 0.25, 0.25)
-    ce = (0.25, -0.25, -0.25, 0.25)
-    cr = (0.25, -0.25, 0.25, -0.25)
-    d = np.empty(4)
-    y = np.empty(4)
-    for i in range(4):
-        d[i] = ca[i] * ra + ce[i] * re
-        y[i] = cr[i] * rr
-    lo = wmin - w_bar
-    hi = wmax - w_bar
+def allocate(thrust: float, mom: np.ndarray, p: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Rotor speeds (rad/s) for a collective thrust (N) and moments (N*m, FRD): per-rotor thrusts from
+    the allocation matrix (``P_ALLOC0``), with saturation handled as PX4 does: yaw is given up first,
+    then roll/pitch is scaled, then the collective shifts (attitude over thrust). Thrust -> speed by
+    the rotor's static thrust curve."""
+    n = int(p[P_NROT])
+    kt2, kt1 = p[P_KT2], p[P_KT1]
+    t_min = kt2 * p[P_WMIN] ** 2 + kt1 * p[P_WMIN]
+    t_max = kt2 * p[P_WMAX] ** 2 + kt1 * p[P_WMAX]
+    base = np.empty(n)
+    d = np.empty(n)
+    y = np.empty(n)
+    for i in range(n):
+        a = P_ALLOC0 + 4 * i
+        base[i] = p[a] * thrust
+        d[i] = p[a + 1] * mom[0] + p[a + 2] * mom[1]
+        y[i] = p[a + 3] * mom[2]
     # Roll/pitch alone: scale down if the span cannot fit between the limits at all.
     span = d.max() - d.min()
-    if span > wmax - wmin:
-        d *= (wmax - wmin) / span
+    if span > t_max - t_min:
+        d *= (t_max - t_min) / span
     # Yaw: largest fraction that still fits with roll/pitch at the current collective.
     scale_y = 1.0
-    for i in range(4):
-        tot = d[i] + y[i]
-        if tot > hi and y[i] > 0.0:
-            scale_y = min(scale_y, max(0.0, (hi - d[i]) / y[i]))
-        elif tot < lo and y[i] < 0.0:
-            scale_y = min(scale_y, max(0.0, (lo - d[i]) / y[i]))
-    for i in range(4):
-        out[i] = w_bar + d[i] + scale_y * y[i]
+    for i in range(n):
+        tot = base[i] + d[i] + y[i]
+        if tot > t_max and y[i] > 0.0:
+            scale_y = min(scale_y, max(0.0, (t_max - base[i] - d[i]) / y[i]))
+        elif tot < t_min and y[i] < 0.0:
+            scale_y = min(scale_y, max(0.0, (t_min - base[i] - d[i]) / y[i]))
+    t = base + d + scale_y * y
     # Shift the collective to bring everything inside the limits.
-    top = out.max()
-    bot = out.min()
-    if top > wmax:
-        out -= top - wmax
-    elif bot < wmin:
-        out += wmin - bot
-    for i in range(4):
-        out[i] = min(max(out[i], wmin), wmax)
+    top = t.max()
+    bot = t.min()
+    if top > t_max:
+        t -= top - t_max
+    elif bot < t_min:
+        t += t_min - bot
+    out[:] = 0.0
+    for i in range(n):
+        ti = min(max(t[i], t_min), t_max)
+        out[i] = (-kt1 + math.sqrt(kt1 * kt1 + 4.0 * kt2 * ti)) / (2.0 * kt2)
     return out
 
 
 @njit(cache=True)
-def _hover_speed_for_thrust(thrust: float, p: np.ndarray) -> float:
-    """Equal rotor speed giving ``thrust`` (N) at zero airspeed by Eq. 46c."""
-    k = p[P_RHO] * math.pi * p[P_R] ** 2
-    a = 4.0 * k * p[_CZ_T0] * p[P_R] ** 2
-    bq = 4.0 * k * p[_CZ_TV] * p[P_R] * p[P_V0]
-    return (-bq + math.sqrt(bq * bq + 4.0 * a * max(thrust, 0.0))) / (2.0 * a)
-
-
-@njit(cache=True)
 def _max_thrust(p: np.ndarray) -> float:
-    k = p[P_RHO] * math.pi * p[P_R] ** 2
+    """Collective thrust (N) with every rotor at its maximum speed, zero airspeed."""
     w = p[P_WMAX]
-    return 4.0 * k * (p[_CZ_T0] * p[P_R] ** 2 * w * w + p[_CZ_TV] * p[P_R] * p[P_V0] * w)
+    return p[P_NROT] * (p[P_KT2] * w * w + p[P_KT1] * w)

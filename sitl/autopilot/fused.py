@@ -9,43 +9,52 @@ through (:func:`sitl.world.kernel.advance_commanded`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from sitl.autopilot.controller import F_IDLE, SP_FLAGS, control
-from sitl.world.kernel import FLAG_CRASHED, Obstacles, physics_tick
-from sitl.world.wind.kernel import WindKernel, open_wind, urban_wind
-from vehicle.params import P_WMIN
+from sitl.world.kernel import FLAG_CRASHED, Obstacles, physics_tick, sample_winds
+from sitl.world.wind.kernel import WindKernel
+from vehicle.params import MAX_ROTORS, P_NROT, P_WMAX, P_WMIN
 
 
 @njit(cache=True)
 def advance_controlled(
     n: int, tick0: int, dt: float, x: np.ndarray, flags: np.ndarray, p: np.ndarray, crash_speed: float,
     imu_div: int, rows: np.ndarray, fb: np.ndarray, wk: WindKernel, obs: Obstacles,
-    sp: np.ndarray, gains: np.ndarray, cs: np.ndarray, accel_sp: np.ndarray,
+    sp: np.ndarray, gains: np.ndarray, cs: np.ndarray, accel_sp: np.ndarray, dw2: np.ndarray, dw2_tick0: int,
 ) -> int:  # fmt: skip
     """``n`` physics ticks from ``tick0`` flown by the controller on setpoint ``sp`` (held over
     the ticks): crashed -> rotors stopped, armed idle -> minimum speed and controller memory
-    cleared, else the cascaded controller. Returns the truth rows written to ``rows``."""
+    cleared, else the cascaded controller. Returns the truth rows written to ``rows``.
+
+    ``dw2`` (K, MAX_ROTORS): an excitation added to the controller's squared rotor-speed commands,
+    row ``tick - dw2_tick0`` at each tick inside it (rad^2/s^2; the system identification's
+    multisine, injected at the motor commands inside the closed loop as the paper does); the sum is
+    limited to the rotor speed range. K = 0: none."""
     nrow = 0
-    w_cmd = np.zeros(4)
-    wind = np.empty(3)
+    w_cmd = np.zeros(MAX_ROTORS)
+    winds = np.zeros((1 + MAX_ROTORS, 3))
     st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of, ht, bb = wk  # once: see wind.kernel
     idle = int(sp[SP_FLAGS]) == F_IDLE
+    n_rot = int(p[P_NROT])
     for k in range(n):
         tick = tick0 + k
-        t = tick * dt
-        if uo:
-            wind[0], wind[1], wind[2] = urban_wind(t, x[0], x[1], x[2], to, ta, tr, uvw, ugp, un, ve, wd, uwp, tm, vt,
-                                                   of, ht, bb, False)  # fmt: skip
-        else:
-            wind[0], wind[1], wind[2] = open_wind(t, x[0], x[1], x[2], st, sv, lp, z0, il, to, ta, tr, uvw, False)
+        sample_winds(tick * dt, x, p, winds, st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of,
+                     ht, bb)  # fmt: skip
         if flags[FLAG_CRASHED] != 0.0:
             w_cmd[:] = 0.0
         elif idle:
-            w_cmd[:] = p[P_WMIN]
+            w_cmd[:n_rot] = p[P_WMIN]
             cs[:] = 0.0
         else:
             w_cmd = control(x, sp, gains, cs, p, dt, accel_sp)
-        nrow = physics_tick(tick, dt, x, w_cmd, wind, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
+            j = tick - dw2_tick0
+            if 0 <= j < dw2.shape[0]:
+                lo2 = p[P_WMIN] * p[P_WMIN]
+                for i in range(n_rot):
+                    w_cmd[i] = min(math.sqrt(max(w_cmd[i] * w_cmd[i] + dw2[j, i], lo2)), p[P_WMAX])
+        nrow = physics_tick(tick, dt, x, w_cmd, winds, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
     return nrow

@@ -34,7 +34,7 @@ from typing import cast
 import numpy as np
 
 from sitl.autopilot.builtin import BuiltinAutopilot
-from sitl.hil.motors import N_MOTORS, MotorMap
+from sitl.hil.motors import MotorMap
 from sitl.world.world import Pilot, RotorCommand, World
 
 #: Simulation seconds an invalid output stream is bridged with the last valid command.
@@ -54,7 +54,7 @@ class ControlGuard:
         self.motors = motors
         self.say = say
         self.hold_s = float(hold_s)
-        self.command = RotorCommand()
+        self.command = RotorCommand(world.n_rotors)
         self.safety: BuiltinAutopilot | None = None
         self.counters: Counter[str] = Counter()
         self.px4_armed = False
@@ -119,12 +119,12 @@ class ControlGuard:
             if self.airborne:
                 self._engage(f"no valid PX4 outputs for {self.hold_s:g} s")
             else:
-                self.command.set(np.zeros(N_MOTORS))
+                self.command.set(np.zeros(self.world.n_rotors))
                 self.counters["stopped_on_ground"] += 1
                 self.say(f"no valid PX4 outputs for {self.hold_s:g} s on the ground: rotors stopped")
         if self.safety is not None and not self.safety.fc.armed:
             self.safety = None
-            self.command.set(np.zeros(N_MOTORS))
+            self.command.set(np.zeros(self.world.n_rotors))
             self.say(f"safety landing done at t = {w.t:.2f} s: PX4's outputs drive the rotors again")
 
     def _engage(self, why: str) -> None:

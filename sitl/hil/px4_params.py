@@ -1,13 +1,12 @@
-"""PX4 parameters for windseek's vehicle: the shipped file, and the environment that starts PX4 SITL with it.
+"""PX4 parameters for windseek's vehicles: the shipped files, and the environment that starts PX4 SITL with one.
 
-The file ``sitl/px4/windseek_nasa_quad.params`` (QGroundControl's parameter file format, one
-``system component name value type`` line per parameter, type 6 = INT32, 9 = REAL32) describes
-the paper's quadrotor to PX4: the X geometry, spin directions and torque ratio of the rotors
+A file ``sitl/px4/windseek_<vehicle>.params`` (QGroundControl's parameter file format, one
+``system component name value type`` line per parameter, type 6 = INT32, 9 = REAL32) describes a
+vehicle file's multirotor to PX4: the geometry, spin directions and torque ratio of the rotors
 (``CA_ROTOR*``), the thrust curve (``THR_MDL_FAC``, :mod:`sitl.hil.motors`), the hover thrust
-(``MPC_THR_HOVER``), the motor outputs of SITL (``PWM_MAIN_FUNC1..4``) and HITL
-(``HIL_ACT_FUNC1..4``), and the GNSS latency of windseek's receiver model (``EKF2_GPS_DELAY``).
-:func:`vehicle_params` computes them from the vehicle file; a test keeps the shipped file equal
-to it.
+(``MPC_THR_HOVER``), the motor outputs of SITL (``PWM_MAIN_FUNCi``) and HITL (``HIL_ACT_FUNCi``),
+and the GNSS latency of windseek's receiver model (``EKF2_GPS_DELAY``). :func:`vehicle_params`
+computes them from the vehicle file; a test keeps the shipped files equal to it.
 
 Loading it:
 
@@ -28,12 +27,15 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from sitl.hil.motors import PX4_TO_ROTOR, px4_figures
+from sitl.hil.motors import px4_figures
 from sitl.world.sensors import GnssConfig
-from vehicle.params import VehicleParams, load_vehicle
+from vehicle.params import VehicleParams
+from vehicle.vehicle_file import load_vehicle
 
+#: The shipped parameter files: ``windseek_<vehicle file stem>.params``.
+PARAMS_DIR = Path(__file__).resolve().parent.parent / "px4"
 #: The shipped parameter file of the paper's vehicle.
-PARAMS_FILE = Path(__file__).resolve().parent.parent / "px4" / "windseek_nasa_quad.params"
+PARAMS_FILE = PARAMS_DIR / "windseek_nasa_quad.params"
 INT32, REAL32 = 6, 9
 #: PX4 SITL airframe with an external simulator on TCP 4560 + instance and a quad X on outputs 1-4.
 SITL_AIRFRAME = 10016
@@ -55,21 +57,18 @@ class Param:
 
 
 def vehicle_params(vehicle: VehicleParams, gnss: GnssConfig | None = None) -> list[Param]:
-    """PX4 parameters of a windseek quadrotor (see the module docstring); rotor order is PX4's."""
+    """PX4 parameters of a windseek multirotor (see the module docstring); rotor order is PX4's."""
     f = px4_figures(vehicle)
     g = gnss or GnssConfig()
-    out = [Param("CA_AIRFRAME", 0, INT32), Param("CA_ROTOR_COUNT", 4, INT32)]
-    # PX4 motor i sits where windseek rotor PX4_TO_ROTOR[i] is: FR, RL, FL, RR; CCW (KM > 0) = windseek 1 and 3.
-    signs = {0: (1, 1, 1), 1: (-1, 1, -1), 2: (-1, -1, 1), 3: (1, -1, -1)}  # rotor -> (x, y, spin) signs
-    for i, rotor in enumerate(PX4_TO_ROTOR):
-        sx, sy, spin = signs[rotor]
-        out += [Param(f"CA_ROTOR{i}_PX", round(sx * f.arm_x_m, 4), REAL32),
-                Param(f"CA_ROTOR{i}_PY", round(sy * f.arm_y_m, 4), REAL32),
+    n = vehicle.n_rotors
+    out = [Param("CA_AIRFRAME", 0, INT32), Param("CA_ROTOR_COUNT", n, INT32)]
+    for i, (x, y, spin) in enumerate(f.rotors):  # PX4's CA_ROTORi_KM > 0: counter-clockwise seen from above
+        out += [Param(f"CA_ROTOR{i}_PX", round(x, 4), REAL32), Param(f"CA_ROTOR{i}_PY", round(y, 4), REAL32),
                 Param(f"CA_ROTOR{i}_KM", round(spin * f.km, 4), REAL32)]  # fmt: skip
     out += [Param("THR_MDL_FAC", round(f.thr_mdl_fac, 3), REAL32),
             Param("MPC_THR_HOVER", round(f.hover_thrust, 3), REAL32)]
-    out += [Param(f"PWM_MAIN_FUNC{i}", 100 + i, INT32) for i in range(1, 5)]
-    out += [Param(f"HIL_ACT_FUNC{i}", 100 + i, INT32) for i in range(1, 5)]
+    out += [Param(f"PWM_MAIN_FUNC{i}", 100 + i, INT32) for i in range(1, n + 1)]
+    out += [Param(f"HIL_ACT_FUNC{i}", 100 + i, INT32) for i in range(1, n + 1)]
     out.append(Param("EKF2_GPS_DELAY", round(1000 * g.latency_s, 1), REAL32))
     return out
 
@@ -77,20 +76,25 @@ def vehicle_params(vehicle: VehicleParams, gnss: GnssConfig | None = None) -> li
 def format_params_file(params: list[Param], vehicle: VehicleParams) -> str:
     """The QGroundControl parameter file text (system 1, component 1)."""
     f = px4_figures(vehicle)
+    motors = ", ".join(f"{i + 1} {_where(x, y)} {'CCW' if s > 0 else 'CW'}" for i, (x, y, s) in enumerate(f.rotors))
     head = [
         f"# PX4 parameters of windseek's vehicle {vehicle.name!r} (written by sitl/hil/px4_params.py from the "
         "vehicle file).",
-        f"# Thrust: omega = {vehicle.rotor_speed_max_rad_s:g} rad/s * output; THR_MDL_FAC from the rotor model; "
-        f"hover {f.hover_thrust:.3f} of {f.max_thrust_n:.2f} N per rotor (T/W {f.thrust_to_weight:.2f}).",
-        f"# Geometry: X, arm {vehicle.arm_length_m:.4f} m. The identified model's roll/pitch effectiveness equals "
-        f"arms of {f.roll_arm_m:.3f} / {f.pitch_arm_m:.3f} m;",
-        "# PX4 normalizes roll and pitch with one shared scale, so only their ratio matters "
-        f"({f.roll_arm_m / f.pitch_arm_m:.2f} identified, 1 here).",
-        "# Motors (PX4 order): 1 front right CCW, 2 rear left CCW, 3 front left CW, 4 rear right CW.",
+        f"# Thrust: omega = {vehicle.rotor_speed_max_rad_s:g} rad/s * output; THR_MDL_FAC from the truth's static "
+        f"thrust; hover {f.hover_thrust:.3f} of {f.max_thrust_n:.2f} N per rotor (T/W {f.thrust_to_weight:.2f}).",
+        f"# Geometry: {vehicle.layout}, arm {vehicle.arm_length_m:.4f} m; KM = rotor torque / thrust at hover.",
+        f"# Motors (PX4 order): {motors}.",
         "#",
         "# Vehicle-Id\tComponent-Id\tName\tValue\tType",
     ]
     return "\n".join(head + [f"1\t1\t{p.name}\t{p.text()}\t{p.type}" for p in params]) + "\n"
+
+
+def _where(x: float, y: float) -> str:
+    """'front right' ... for a rotor position (FRD, m)."""
+    fb = "front" if x > 1e-6 else "rear" if x < -1e-6 else ""
+    lr = "right" if y > 1e-6 else "left" if y < -1e-6 else ""
+    return " ".join(w for w in (fb, lr) if w)
 
 
 def read_params_file(path: Path | str = PARAMS_FILE) -> list[Param]:

@@ -24,11 +24,15 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from sitl.autopilot.flight_modes import Mode
+from sitl.world.kernel import T_ROTOR_CMD
 from sitl.world.sensors import ned_to_geodetic
 from vehicle.frames import quat_to_euler
-from vehicle.rotor_model import hover_rotor_speed
 from wire import px4_modes
 from wire.dialect import mavlink
+
+#: The HEARTBEAT's MAV_TYPE by rotor count.
+MAV_TYPES = {3: mavlink.MAV_TYPE_TRICOPTER, 4: mavlink.MAV_TYPE_QUADROTOR, 6: mavlink.MAV_TYPE_HEXAROTOR,
+             8: mavlink.MAV_TYPE_OCTOROTOR}  # fmt: skip
 
 if TYPE_CHECKING:
     from sitl.simulation import Simulation
@@ -77,7 +81,7 @@ class Telemetry:
         self.cells = int(v.battery_cells)
         self.capacity_mah = float(v.battery_capacity_mah)
         self.hover_current_a = float(v.hover_current_a)
-        self.w_hover = float(hover_rotor_speed(v))
+        self.w_hover = float(v.control["hover_speed"])  # the truth's: what the motors really run at
         self.consumed_mah = 0.0
         self.current_a = 0.0
         self._last_t = sim.t
@@ -197,7 +201,8 @@ class Telemetry:
             status = mavlink.MAV_STATE_STANDBY
         return [
             mavlink.MAVLink_heartbeat_message(
-                mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, px4_custom_mode(mode), status, 3
+                MAV_TYPES.get(self.sim.vehicle.n_rotors, mavlink.MAV_TYPE_GENERIC), mavlink.MAV_AUTOPILOT_PX4, base,
+                px4_custom_mode(mode), status, 3
             )
         ]
 
@@ -316,26 +321,31 @@ class Telemetry:
 
     def servo_output_raw(self) -> list:
         pwm = self._pwm()
-        return [mavlink.MAVLink_servo_output_raw_message(self.usec() & 0xFFFFFFFF, 0, *pwm, *([0] * 4))]
+        return [mavlink.MAVLink_servo_output_raw_message(self.usec() & 0xFFFFFFFF, 0, *pwm, *([0] * (8 - len(pwm))))]
 
     def actuator_output_status(self) -> list:
-        outs = [float(v) for v in self._pwm()] + [0.0] * 28
-        return [mavlink.MAVLink_actuator_output_status_message(self.usec(), 4, outs)]
+        pwm = self._pwm()
+        outs = [float(v) for v in pwm] + [0.0] * (32 - len(pwm))
+        return [mavlink.MAVLink_actuator_output_status_message(self.usec(), len(pwm), outs)]
 
     def _pwm(self) -> list[int]:
         sim = self.sim
+        n = sim.vehicle.n_rotors
         if not sim.fc.armed:
-            return [900] * 4
+            return [900] * n
         wmax = float(sim.vehicle.rotor_speed_max_rad_s)
-        frac = np.clip(np.asarray(sim.last_truth[24:28]) / wmax, 0.0, 1.0)
+        frac = np.clip(np.asarray(sim.last_truth[T_ROTOR_CMD][:n]) / wmax, 0.0, 1.0)
         return [int(1000 + 1000 * f) for f in frac]
 
     def esc_info(self) -> list:
+        """ESC_INFO, four ESCs a message (``index`` the first of them), as PX4 sends it."""
+        n = self.sim.vehicle.n_rotors
         return [
             mavlink.MAVLink_esc_info_message(
-                0, self.usec(), self.esc_counter & 0xFFFF, 4, mavlink.ESC_CONNECTION_TYPE_DSHOT, 0x0F,
-                [0] * 4, [0] * 4, [2500] * 4,
+                i, self.usec(), self.esc_counter & 0xFFFF, n, mavlink.ESC_CONNECTION_TYPE_DSHOT,
+                (1 << min(4, n - i)) - 1, [0] * 4, [0] * 4, [2500] * 4,
             )
+            for i in range(0, n, 4)
         ]  # fmt: skip
 
     def raw_rpm(self) -> list:
@@ -403,12 +413,19 @@ class Telemetry:
         ]
 
     def esc_status(self, esc: tuple[float, np.ndarray]) -> list:
+        """ESC_STATUS, four ESCs a message (``index`` the first of them: a hexarotor sends two)."""
         t, w = esc
         self.esc_counter += 1
+        n = len(w)
         rpm = [int(round(float(v) * RAD_S_TO_RPM)) for v in w]
-        volts = [float(self.voltage_v)] * 4
-        amps = [float(self.current_a) / 4.0] * 4
-        return [mavlink.MAVLink_esc_status_message(0, self.usec(t), rpm, volts, amps)]
+        volts = float(self.voltage_v)
+        amps = float(self.current_a) / n
+        out = []
+        for i in range(0, n, 4):
+            k = min(4, n - i)
+            out.append(mavlink.MAVLink_esc_status_message(i, self.usec(t), rpm[i:i + k] + [0] * (4 - k),
+                                                          [volts] * k + [0.0] * (4 - k), [amps] * k + [0.0] * (4 - k)))
+        return out
 
     def gps_raw_int(self, g: GnssSample) -> list:
         vel = g.vel_ned

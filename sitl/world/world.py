@@ -31,7 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from sitl.scenario import Scenario
-from sitl.world.dynamics import N_STATE
+from sitl.world.dynamics import IX_INFLOW, IX_ROTORS, N_STATE
 from sitl.world.kernel import (
     FLAG_COLLISIONS,
     FLAG_CRASHED,
@@ -50,7 +50,8 @@ from sitl.world.sensors import BaroSample, GnssSample, MagSample, SensorSuite
 from sitl.world.wind.kernel import WindKernel
 from sitl.world.wind.model import WindModel, make_wind
 from vehicle.frames import euler_to_quat, quat_to_dcm, tilt_angle
-from vehicle.params import VehicleParams, load_vehicle
+from vehicle.params import MAX_ROTORS, VehicleParams
+from vehicle.vehicle_file import load_vehicle
 
 #: Sensor samples kept between two ``drain()`` calls, per sensor (the oldest are dropped).
 SENSOR_QUEUE_MAXLEN = 100_000
@@ -62,7 +63,7 @@ class SensorOutputs:
 
     maxlen: int = SENSOR_QUEUE_MAXLEN
     imu: deque[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=deque)  # (t, accel FRD, gyro FRD)
-    esc: deque[tuple[float, np.ndarray]] = field(default_factory=deque)  # (t, rotor speeds rad/s (4,))
+    esc: deque[tuple[float, np.ndarray]] = field(default_factory=deque)  # (t, rotor speeds rad/s (N,))
     gnss: deque[GnssSample] = field(default_factory=deque)
     baro: deque[BaroSample] = field(default_factory=deque)
     mag: deque[MagSample] = field(default_factory=deque)
@@ -77,8 +78,9 @@ class PhysicsArrays:
     """The arrays the physics loop works on in place: the explicit boundary between the world and
     a pilot that runs its own compiled loop (the built-in autopilot's fused path).
 
-    x: state (17,): position NED m, velocity NED m/s, quaternion body->NED, rates FRD rad/s,
-        rotor speeds rad/s. flags: (4,) [on_ground, crashed, touchdown speed m/s, collisions].
+    x: state (N_STATE,): position NED m, velocity NED m/s, quaternion body->NED, rates FRD rad/s,
+        rotor speeds rad/s, rotor inflows m/s (see :mod:`sitl.world.dynamics`).
+        flags: (4,) [on_ground, crashed, touchdown speed m/s, collisions].
     params: the vehicle parameter array; crash_speed: touchdown speed that is a crash, m/s.
     rows: truth-row buffer (one slow tick of IMU samples); fb: specific force at the last tick.
     imu_div: physics ticks per IMU sample; dt: physics step, s.
@@ -110,16 +112,21 @@ class Pilot(Protocol):
 
 
 class RotorCommand:
-    """Commanded rotor speeds (rad/s, the vehicle's rotor order) held until the next :meth:`set`."""
+    """Commanded rotor speeds (rad/s, the vehicle's rotor order) held until the next :meth:`set`, for a
+    vehicle with ``n_rotors`` rotors (``World.n_rotors``)."""
 
-    def __init__(self, speeds_rad_s: np.ndarray | None = None) -> None:
-        self.speeds = np.zeros(4) if speeds_rad_s is None else np.array(speeds_rad_s, dtype=float)
+    def __init__(self, n_rotors: int = 4) -> None:
+        if not 1 <= n_rotors <= MAX_ROTORS:
+            raise ValueError(f"rotor command: n_rotors = {n_rotors}, allowed 1-{MAX_ROTORS}")
+        self.n_rotors = n_rotors
+        self._buffer = np.zeros(MAX_ROTORS)  # what the physics loop reads (MAX_ROTORS slots)
+        self.speeds = self._buffer[:n_rotors]  # a view: writing it writes the buffer
 
     def set(self, speeds_rad_s: np.ndarray) -> None:
-        """New command (4,), rad/s; NaN or negative values are refused (ValueError)."""
+        """New command (one speed per rotor), rad/s; NaN or negative values are refused (ValueError)."""
         w = np.asarray(speeds_rad_s, dtype=float)
-        if w.shape != (4,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
-            raise ValueError(f"rotor command must be 4 finite speeds >= 0 rad/s, got {speeds_rad_s!r}")
+        if w.shape != (self.n_rotors,) or not np.all(np.isfinite(w)) or np.any(w < 0.0):
+            raise ValueError(f"rotor command must be {self.n_rotors} finite speeds >= 0 rad/s, got {speeds_rad_s!r}")
         self.speeds[:] = w
 
     def on_slow_tick(self, world: World) -> None:
@@ -127,7 +134,7 @@ class RotorCommand:
 
     def advance(self, world: World, n: int) -> int:
         ph = world.phys
-        return advance_commanded(n, world.tick, ph.dt, ph.x, self.speeds, ph.flags, ph.params, ph.crash_speed,
+        return advance_commanded(n, world.tick, ph.dt, ph.x, self._buffer, ph.flags, ph.params, ph.crash_speed,
                                  ph.imu_div, ph.rows, ph.fb, world.wind_kernel, ph.obstacles)  # fmt: skip
 
 
@@ -196,8 +203,12 @@ class World:
 
     @property
     def x(self) -> np.ndarray:
-        """The state vector (17,) (see :class:`PhysicsArrays`); the array itself, not a copy."""
+        """The state vector (N_STATE,) (see :class:`PhysicsArrays`); the array itself, not a copy."""
         return self.phys.x
+
+    @property
+    def n_rotors(self) -> int:
+        return self.vehicle.n_rotors
 
     @property
     def position(self) -> np.ndarray:
@@ -221,8 +232,14 @@ class World:
 
     @property
     def rotor_speeds(self) -> np.ndarray:
-        """Rotor speeds, rad/s."""
-        return self.phys.x[13:17].copy()
+        """Rotor speeds (N,), rad/s."""
+        return self.phys.x[IX_ROTORS:IX_ROTORS + self.vehicle.n_rotors].copy()
+
+    def set_hover_rotors(self) -> None:
+        """Rotors at the truth's hover speed with their inflow settled (an airborne start)."""
+        n = self.vehicle.n_rotors
+        self.phys.x[IX_ROTORS:IX_ROTORS + n] = self.vehicle.control["hover_speed"]
+        self.phys.x[IX_INFLOW:IX_INFLOW + n] = self.vehicle.hover_induced_velocity_m_s
 
     @property
     def wind_at_vehicle(self) -> np.ndarray:
@@ -321,7 +338,8 @@ class World:
         first = -self._imu_count % self.esc_every
         if first < k:
             sel = slice(first, k, self.esc_every)
-            out.esc.extend(zip(t[sel], self.sensors.esc(rows[sel, T_ROTORS]), strict=True))
+            speeds = rows[sel, T_ROTORS][:, : self.vehicle.n_rotors]
+            out.esc.extend(zip(t[sel], self.sensors.esc(speeds), strict=True))
         self._imu_count += k
         self.last_truth = rows[-1].copy()
         if self.truth_log is not None:

@@ -1,0 +1,142 @@
+"""Does the model fit the vehicle flown? Two checks, one answer for every program that estimates the wind.
+
+- :class:`~estimator.thrust_check.ThrustCheck`: the rotors' thrust at the measured rotor speeds against the
+  vehicle's mass times its specific force, over the airspeeds the model was identified for (needs no
+  wind estimate; catches gross mismatches: another airframe, a wrong vehicle file).
+- :class:`DomainCheck`: the filter's airspeed against the model's identified domain (a wrong model is
+  explained by a wind no identification flight went near: PX4 SIH's 1 kg vehicle with the 2.8 kg model
+  by a 20 m/s vertical wind).
+
+Neither can tell a mass error of some tens of percent from the airspeed's effect on the rotors (a
+rotor's thrust grows 36 % at 10 m/s and in a descent through the air): a vehicle 40 % heavier than its
+model in 10 m/s of wind, or 40 % off in a 3 m/s wind with a 3-4 m/s vertical wind to explain it,
+passes; twice or half the mass does not.
+
+:class:`ModelFit` runs both on every IMU sample; the first confirmed verdict is ``mismatch`` (one line,
+latched), and until a verdict of fit (:attr:`ModelFit.judged`) nothing is published: the live estimator
+(``estimator.live``), the mission runner (through it) and the review say which model is in use and
+whether it fits. Units SI; FRD body; times in s of the autopilot's clock.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from estimator.thrust_check import ThrustCheck, ThrustCheckConfig
+from vehicle.params import VehicleParams
+
+
+def identified_box(vehicle: VehicleParams) -> np.ndarray | None:
+    """(3, 2) lower and upper body airspeed (u, v, w; m/s) the model was identified for: its domain's 5th /
+    95th percentiles, widened by 50 % and 1.5 m/s (gusts and the filter's own noise: a window's mean airspeed
+    in 10 m/s of turbulent wind reaches 11 m/s); None for a model without a recorded domain (the paper's
+    Table 5 alone: Table 3 is not in its vehicle file)."""
+    dom = vehicle.model_info.get("domain_p5_p95", {})
+    if not all(k in dom for k in ("u", "v", "w")):
+        return None
+    box = np.array([[float(dom[k][0]), float(dom[k][1])] for k in ("u", "v", "w")])
+    return box * 1.5 + np.array([-1.5, 1.5])
+
+
+class DomainCheck:
+    """The filter's airspeed against the model's identified domain, in steady flight.
+
+    A model explains the vehicle's forces with some airspeed, so a wrong model (another vehicle, a wrong
+    mass) shows as a wind whose airspeed lies where no identification flight went: PX4 SIH's 1 kg vehicle
+    with the 2.8 kg model is explained by a 20 m/s vertical wind. Feed it every IMU sample with the filter's
+    body airspeed once the filter has converged
+    (horizontal wind 1-sigma under ``converged_sigma_m_s``); ``confirm`` windows of ``window_s`` with a
+    mean airspeed outside :func:`identified_box` are a mismatch (said once, latched).
+    """
+
+    def __init__(self, vehicle: VehicleParams, window_s: float = 2.0, confirm: int = 2) -> None:
+        self.box = identified_box(vehicle)
+        self.window_s, self.confirm = window_s, confirm
+        self.vehicle_name = vehicle.name
+        self.mismatch: str | None = None
+        self.outside = 0
+        self.windows = 0
+        self.last_mean: np.ndarray | None = None
+        self._t0, self._sum, self._n = math.nan, np.zeros(3), 0
+
+    def sample(self, t: float, airspeed_body: np.ndarray | None, airborne: bool) -> bool:
+        """One sample; True when it confirmed a mismatch (:attr:`mismatch` is set)."""
+        if self.box is None or self.mismatch is not None:
+            return False
+        if not airborne or airspeed_body is None:
+            self._t0, self._n = math.nan, 0
+            return False
+        if not math.isfinite(self._t0):
+            self._t0, self._sum, self._n = t, np.zeros(3), 0
+        self._sum += airspeed_body
+        self._n += 1
+        if t - self._t0 < self.window_s:
+            return False
+        mean = self._sum / self._n
+        self._t0 = math.nan
+        self.windows += 1
+        self.last_mean = mean
+        out = (mean < self.box[:, 0]) | (mean > self.box[:, 1])
+        self.outside = self.outside + 1 if out.any() else 0
+        if self.outside < self.confirm:
+            return False
+        names = ", ".join(f"{n} {m:+.1f} m/s (identified {lo:+.1f}..{hi:+.1f})"
+                          for n, m, (lo, hi), o in zip("uvw", mean, self.box, out, strict=True) if o)  # fmt: skip
+        self.mismatch = (f"model mismatch: the wind that explains this vehicle's forces puts its airspeed where "
+                         f"{self.vehicle_name}'s model was never identified ({names}); this is not the model's "
+                         "vehicle (or not its domain), so the estimate would be a guess: the wind estimate is "
+                         "withheld")  # fmt: skip
+        return True
+
+
+
+class ModelFit:
+    """The thrust check and the domain check on one vehicle file's model (see the module docstring)."""
+
+    def __init__(self, vehicle: VehicleParams, config: ThrustCheckConfig | None = None) -> None:
+        self.thrust = ThrustCheck(vehicle, config)
+        self.domain = DomainCheck(vehicle, self.thrust.config.window_s, self.thrust.config.confirm)
+        self.vehicle_name = vehicle.name
+        self.model_source = str(vehicle.model_info.get("source", "the vehicle file's [model]"))
+
+    @property
+    def mismatch(self) -> str | None:
+        return self.thrust.mismatch or self.domain.mismatch
+
+    @property
+    def judged(self) -> bool:
+        """A verdict of fit: both checks judged ``confirm`` windows (the domain check only once the filter
+        converged) and nothing is wrong."""
+        need = self.thrust.config.confirm
+        domain_done = self.domain.box is None or self.domain.windows >= need
+        return self.mismatch is None and self.thrust.windows >= need and domain_done
+
+    @property
+    def ratio(self) -> float | None:
+        return self.thrust.ratio
+
+    @property
+    def band(self) -> tuple[float, float]:
+        return self.thrust.band
+
+    def sample(self, t: float, acc: np.ndarray, gyr: np.ndarray, speeds: np.ndarray | None, airborne: bool,
+               airspeed_body: np.ndarray | None, converged: bool) -> bool:  # fmt: skip
+        """One IMU sample (specific force, rates, the rotor speeds in force, the filter's airspeed and
+        whether the filter has converged); True when it confirmed a mismatch (once: the first one latches)."""
+        if self.mismatch is not None:
+            return False
+        if self.thrust.sample(t, acc, gyr, speeds, airborne):
+            return True
+        return self.domain.sample(t, airspeed_body if converged else None, airborne)
+
+    def summary(self) -> dict[str, object]:
+        """What the checks found, for a program's summary."""
+        m = self.domain.last_mean
+        return {"model": self.vehicle_name, "model_source": self.model_source, "model_fits": self.judged,
+                "thrust_ratio": None if self.ratio is None else round(self.ratio, 3),
+                "thrust_band": [round(b, 3) for b in self.band],
+                "airspeed_body_m_s": None if m is None else [round(float(x), 2) for x in m],
+                "identified_box_m_s": None if self.domain.box is None
+                else self.domain.box.round(2).tolist()}  # fmt: skip
