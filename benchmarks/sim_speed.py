@@ -10,6 +10,8 @@ ratio. JIT compilation is excluded (a warm-up run first). Usage:
 
 ``--scenario paper-s4 --reference open-field`` measures the urban world (gridded wind, puffs among
 the buildings) and, in the same run, the same vehicle and plume in open terrain.
+``--vehicle nasa-quad --reference-vehicle nasa-quad-table5`` measures the blade-element world (the default
+truth) against the identified-model world of before, same scenario, same run (issue 29: at most 1.5x).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -29,8 +32,11 @@ from sitl.scenario import load_scenario  # noqa: E402
 from sitl.simulation import Simulation  # noqa: E402
 
 
-def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", repeats: int = 3) -> dict:
+def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", repeats: int = 3,
+                             vehicle: str | None = None) -> dict:  # fmt: skip
     sc = load_scenario(scenario).with_duration(sim_seconds + 1.0)
+    if vehicle is not None:
+        sc = replace(sc, vehicle=vehicle)
     Simulation(sc, seed=0).run(1.0)  # warm-up: JIT compile / load the numba cache
     best = best_cpu = 0.0
     for r in range(repeats):
@@ -43,7 +49,7 @@ def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", rep
         assert not sim.crashed
     # The CPU-time figure is the one to compare between runs on a shared machine: other processes
     # lengthen the wall clock, not the process's own CPU time.
-    return {"scenario": scenario, "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
+    return {"scenario": scenario, "vehicle": sc.vehicle, "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
             "realtime_factor": best, "realtime_factor_cpu": best_cpu}
 
 
@@ -55,12 +61,20 @@ def main() -> None:
     ap.add_argument("--scenario", default="paper-s1", help="scenario to fly (default paper-s1)")
     ap.add_argument("--reference", default=None,
                     help="a second scenario measured in the same run, and the ratio (e.g. open-field for paper-s4)")
+    ap.add_argument("--vehicle", default=None, help="the world's vehicle file (default: the scenario's)")
+    ap.add_argument("--reference-vehicle", default=None,
+                    help="a second vehicle file flown in the same scenario, same run, and the cost ratio")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
-    ws = windseek_realtime_factor(args.seconds, args.scenario)
-    print(f"windseek  {args.scenario}, 500 Hz physics, turbulence + sensors: {ws['realtime_factor']:8.1f} x real time "
-          f"(goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
+    ws = windseek_realtime_factor(args.seconds, args.scenario, vehicle=args.vehicle)
+    print(f"windseek  {args.scenario} ({ws['vehicle']}), 500 Hz physics, turbulence + sensors: "
+          f"{ws['realtime_factor']:8.1f} x real time (goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
+    if args.reference_vehicle:
+        rv = windseek_realtime_factor(args.seconds, args.scenario, vehicle=args.reference_vehicle)
+        print(f"windseek  {args.scenario} ({rv['vehicle']}, reference, same run): {rv['realtime_factor']:8.1f} x "
+              f"real time; per CPU second: {rv['realtime_factor_cpu']:.1f} -> cost per simulated second "
+              f"{ws['vehicle']} / {rv['vehicle']} = {rv['realtime_factor_cpu'] / ws['realtime_factor_cpu']:.2f} (CPU)")
     if args.reference:
         ref = windseek_realtime_factor(args.seconds, args.reference)
         print(f"windseek  {args.reference} (reference, same run): {ref['realtime_factor']:8.1f} x real time; "

@@ -148,11 +148,8 @@ class EstimatorConfig:
 
     @classmethod
     def for_vehicle(cls, vehicle: Any, **overrides: Any) -> EstimatorConfig:
-        """The preset a vehicle file calls for: ``calibrated`` when its model was identified for it
-        (``windseek identify`` wrote its fit into ``[model.info]``), ``uncalibrated`` otherwise."""
-        info = getattr(vehicle, "model_info", {}) or {}
-        identified = "fit" in info and str(info.get("source", "")).startswith("windseek identify")
-        return cls.preset("calibrated" if identified else "uncalibrated", **overrides)
+        """The preset a vehicle file calls for (:func:`preset_for`)."""
+        return cls.preset(preset_for(vehicle), **overrides)
 
     @classmethod
     def preset(cls, name: str, **overrides: Any) -> EstimatorConfig:
@@ -165,3 +162,11 @@ class EstimatorConfig:
 #: Preset names of :meth:`EstimatorConfig.preset`: whether the vehicle's mass and force model
 #: were identified. Real vehicles default to ``uncalibrated``.
 PRESETS = ("calibrated", "uncalibrated")
+
+
+def preset_for(vehicle: Any) -> str:
+    """``calibrated`` when the vehicle file's model was identified for it (``windseek identify`` wrote its fit
+    into ``[model.info]``), ``uncalibrated`` otherwise."""
+    info = getattr(vehicle, "model_info", {}) or {}
+    identified = "fit" in info and str(info.get("source", "")).startswith("windseek identify")
+    return "calibrated" if identified else "uncalibrated"

@@ -54,7 +54,7 @@ class DomainCheck:
     def __init__(self, vehicle: VehicleParams, window_s: float = 2.0, confirm: int = 2) -> None:
         self.box = identified_box(vehicle)
         self.window_s, self.confirm = window_s, confirm
-        self.vehicle_name = vehicle.name
+        self.vehicle_name = vehicle.model_name
         self.mismatch: str | None = None
         self.outside = 0
         self.windows = 0

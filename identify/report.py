@@ -29,7 +29,7 @@ UNITS = {"x": "N", "y": "N", "z": "N", "l": "N*m", "m": "N*m", "n": "N*m"}
 def identified_vehicle(base: VehicleParams, ident: Identification, command: str = "") -> VehicleParams:
     """``base`` with the identified Eq. 46 (coefficients in SI, 95 % half-widths, domain) and its report."""
     info: dict[str, Any] = {
-        "source": f"windseek identify{': ' + command if command else ''}",
+        "source": command or "windseek identify",
         "data": list(ident.sources),
         "wind_assumed_ned_m_s": list(ident.wind_assumed_ned),
         "samples_fit": ident.n_fit,

@@ -39,11 +39,12 @@ class TrialSpec:
     seed: int
     params_path: str | None = None
     time_limit_s: float | None = None
+    model: str | None = None
 
 
 def _run(spec: TrialSpec) -> TrialResult:
     return run_trial(spec.scenario, spec.strategy, spec.wind, seed=spec.seed, params_path=spec.params_path,
-                     time_limit_s=spec.time_limit_s)
+                     time_limit_s=spec.time_limit_s, model=spec.model)
 
 
 def run_batch(
@@ -57,6 +58,7 @@ def run_batch(
     time_limit_s: float | None = None,
     progress: bool = True,
     label: str | None = None,
+    model: str | None = None,
 ) -> list[TrialResult]:
     """Run ``trials`` seeded trials (``jobs`` processes) and return the results in seed order."""
     from sitl.scenario import load_scenario
@@ -76,7 +78,11 @@ def run_batch(
     if wind not in INPROCESS_WIND_MODES:
         raise ValueError(f"wind mode {wind!r}: choose one of {', '.join(INPROCESS_WIND_MODES)}")
     seed0 = sc.seed if seed is None else int(seed)
-    specs = [TrialSpec(scenario, strategy, wind, seed0 + i, params_path, time_limit_s) for i in range(trials)]
+    if model is not None:
+        from vehicle.vehicle_file import load_vehicle
+
+        load_vehicle(model)  # a bad file is one clear error here, not N in the workers
+    specs = [TrialSpec(scenario, strategy, wind, seed0 + i, params_path, time_limit_s, model) for i in range(trials)]
     results: list[TrialResult] = []
     label = label or f"{strategy}/{wind} on {sc.name}"
     ctx = mp.get_context("fork" if os.name == "posix" else "spawn")
@@ -121,6 +127,8 @@ def summarize(results: list[TrialResult]) -> dict:
         "scenario": first.scenario if first else "",
         "strategy": first.strategy if first else "",
         "wind": first.wind if first else "",
+        "world_truth": first.world_truth if first else "",
+        "estimator_model": first.estimator_model if first else "",
         "trials": n,
         "successes": len(ok),
         "success_rate": len(ok) / n if n else math.nan,

@@ -35,6 +35,7 @@ from mission.strategies.params import CommonParams
 from mission.wind_modes import INPROCESS_WIND_MODES
 from sitl.simulation import T_QUAT, Simulation
 from vehicle.frames import quat_mul
+from vehicle.params import VehicleParams
 
 
 class UpwindFilter:
@@ -112,12 +113,13 @@ class EstimatedWind:
 
     def __init__(self, sim: Simulation, params: CommonParams, perturb_model: bool = False,
                  config: EstimatorConfig | None = None, ahrs: AhrsErrorModel | None = None,
-                 imu_decimation: int = 1) -> None:
+                 imu_decimation: int = 1, model: VehicleParams | None = None) -> None:
         if sim.truth_log is None:
             raise ValueError("EstimatedWind needs Simulation(record_truth=True) for the attitude measurement")
         self.sim = sim
         seed = sim.seed
-        self._model = model_params(sim.vehicle, seed, perturb_model)
+        base = sim.vehicle if model is None else sim.vehicle.with_model_of(model)
+        self._model = model_params(base, seed, perturb_model)
         self._config = config
         self.estimator = WindEstimator(self._model, config)
         self._gate = GroundGate()
@@ -193,11 +195,13 @@ class EstimatedWind:
         return self.upwind.make(est.wind_ned, est.wind_cov)
 
 
-def make_wind_source(mode: str, sim: Simulation, params: CommonParams, imu_decimation: int = 1) -> WindSource:
+def make_wind_source(mode: str, sim: Simulation, params: CommonParams, imu_decimation: int = 1,
+                     model: VehicleParams | None = None) -> WindSource:  # fmt: skip
     """The wind source for ``mode`` (``estimated``, ``oracle`` or ``none``); ``imu_decimation``:
-    IMU samples averaged per estimator step in ``estimated`` mode."""
+    IMU samples averaged per estimator step in ``estimated`` mode; ``model``: the estimator's force model
+    (a vehicle file's [model]; default the world's vehicle file's own)."""
     if mode == "estimated":
-        return EstimatedWind(sim, params, imu_decimation=imu_decimation)
+        return EstimatedWind(sim, params, imu_decimation=imu_decimation, model=model)
     if mode == "oracle":
         return OracleWind(sim, params)
     if mode == "none":

@@ -258,6 +258,11 @@ class VehicleParams:
         out.validate()
         return out
 
+    @property
+    def model_name(self) -> str:
+        """The vehicle file the Eq. 46 model comes from (this one unless given another's by :meth:`with_model_of`)."""
+        return str(self.model_info.get("vehicle_file", self.name))
+
     def with_model_of(self, other: VehicleParams) -> VehicleParams:
         """This vehicle (truth, mass, geometry) with the Eq. 46 model of ``other`` (an identified file):
         what the estimator uses when it is given ``--vehicle``."""
@@ -265,7 +270,7 @@ class VehicleParams:
                        hover_induced_velocity_m_s=other.hover_induced_velocity_m_s,
                        domain_airspeed_m_s=other.domain_airspeed_m_s,
                        domain_vertical_airspeed_m_s=other.domain_vertical_airspeed_m_s,
-                       model_info=dict(other.model_info))  # fmt: skip
+                       model_info={**other.model_info, "vehicle_file": other.name})  # fmt: skip
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the field and the allowed range."""

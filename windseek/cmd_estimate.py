@@ -6,11 +6,12 @@ estimate against the true total wind and of 1-s averages, horizontal RMSE, direc
 estimator's cost per IMU step (us, predict + updates + outputs), and the final force-scale
 estimate (dimensionless) next to the model/true mass ratio it should approach.
 
-Estimator preset (``--calibration``, see ``EstimatorConfig``): ``calibrated`` when the
-estimator gets the exact model (the vehicle was identified, as the paper assumes),
-``uncalibrated`` (force-scale state) with ``--perturb-model``; a real user picks by whether
-they identified their vehicle. The MAVLink companion (``windseek estimator``) always runs
-``uncalibrated``: real vehicles are not calibrated to a few % of mass.
+The estimator's force model is the scenario vehicle's own vehicle file's [model] (for the built-in
+vehicles: identified by ``windseek identify`` on their blade-element truth), or ``--vehicle FILE``'s.
+Estimator preset (``--calibration``, see ``EstimatorConfig``): by default the one the model's vehicle
+file calls for (``calibrated`` when it was identified, as the paper assumes; ``uncalibrated``, with a
+force-scale state, otherwise), and ``uncalibrated`` with ``--perturb-model``. The JSON says which truth
+the world flew and which model the estimator used.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ import argparse
 import json
 import time
 
+from estimator.config import preset_for
 from estimator.metrics import accuracy
 from estimator.ukf import PRESETS, EstimatorConfig
 from mission.runners.estimator_run import InProcessRunner
 from sitl.scenario import load_scenario
+from vehicle.vehicle_file import load_vehicle
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -46,9 +49,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         choices=PRESETS,
         default=None,
         help="estimator preset: 'calibrated' = mass and force model identified (no force-scale state, z accel bias "
-        "state), 'uncalibrated' = force-scale state for a model known to a few %% (default: calibrated with the "
-        "exact model, uncalibrated with --perturb-model)",
+        "state), 'uncalibrated' = force-scale state for a model known to a few %% (default: the one the model's "
+        "vehicle file calls for, uncalibrated with --perturb-model)",
     )
+    p.add_argument("--vehicle", default=None, help="vehicle file (name or path) of the estimator's force model, e.g. "
+                   "one written by `windseek identify` (default: the scenario vehicle's own)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
 
@@ -65,17 +70,22 @@ def estimate(
     perturb_model: bool = False,
     no_rpm: bool = False,
     calibration: str | None = None,
+    vehicle: str | None = None,
 ) -> dict:
     """Run one scenario with the estimator and return the summary dictionary.
 
-    ``calibration``: estimator preset name (``PRESETS``); None = :func:`default_calibration`.
+    ``calibration``: estimator preset name (``PRESETS``); None = the preset the model's vehicle file calls for
+    (:meth:`EstimatorConfig.for_vehicle`), ``uncalibrated`` with a perturbed model. ``vehicle``: the vehicle
+    file of the estimator's force model (default: the world vehicle's own).
     """
     sc = load_scenario(scenario_name)
     if duration is not None:
         sc = sc.with_duration(duration)
-    calibration = calibration or default_calibration(perturb_model)
+    model = load_vehicle(vehicle) if vehicle else None
+    if calibration is None:
+        calibration = "uncalibrated" if perturb_model else preset_for(model or load_vehicle(sc.vehicle))
     config = EstimatorConfig.preset(calibration)
-    runner = InProcessRunner(sc, seed=seed, perturb_model=perturb_model, no_rpm=no_rpm, config=config)
+    runner = InProcessRunner(sc, seed=seed, perturb_model=perturb_model, no_rpm=no_rpm, config=config, model=model)
     t0 = time.perf_counter()
     log = runner.run()
     wall = time.perf_counter() - t0
@@ -87,6 +97,8 @@ def estimate(
         "perturb_model": perturb_model,
         "no_rpm": no_rpm,
         "calibration": calibration,
+        "world_truth": f"{runner.sim.vehicle.name}: {runner.sim.vehicle.truth}",
+        "estimator_model": f"{runner.params.model_name}: {runner.params.model_info.get('source', 'its vehicle file')}",
         "sim_time_s": round(runner.sim.t, 3),
         "wall_time_s": round(wall, 3),
     }
@@ -104,13 +116,15 @@ def estimate(
 
 
 def run(args: argparse.Namespace) -> int:
-    out = estimate(args.scenario, args.seed, args.duration, args.perturb_model, args.no_rpm, args.calibration)
+    out = estimate(args.scenario, args.seed, args.duration, args.perturb_model, args.no_rpm, args.calibration,
+                   args.vehicle)
     if args.json:
         print(json.dumps(out))
         return 0
-    model = "perturbed model" if out["perturb_model"] else "exact model"
+    model = "perturbed model" if out["perturb_model"] else "model"
     rpm = "rotor speeds from motor commands" if out["no_rpm"] else "ESC rotor speeds"
-    print(f"scenario {out['scenario']} (seed {out['seed']}), {model}, {rpm}, estimator preset {out['calibration']}")
+    print(f"scenario {out['scenario']} (seed {out['seed']}), {rpm}, estimator preset {out['calibration']}")
+    print(f"  world: {out['world_truth']}; estimator {model}: {out['estimator_model']}")
     r, ra = out["rmse_ms"], out["rmse_avg_ms"]
     print(f"  RMSE vs total wind   N {r['N']:.3f}  E {r['E']:.3f}  D {r['D']:.3f} m/s  "
           f"(horizontal {out['rmse_horizontal_ms']:.3f})")

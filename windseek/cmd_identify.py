@@ -75,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
     say(f"flying the validation manoeuvre ({val_spec.duration_s:g} s), seed {args.seed + 1000} ...")
     val_data = fly(scenario, args.seed + 1000, design(val_spec, hover_dt), vehicle)
     ident = identify(fit_data, vehicle, val_data)
-    command = f"windseek identify {scenario.name} --seed {args.seed}"
+    command = f"windseek identify {scenario.name} --seed {args.seed}" + (f" --vehicle {args.vehicle}" if args.vehicle
+                                                                          else "")
     out = identified_vehicle(vehicle, ident, command)
     if args.output:
         header = (f"{vehicle.name}: Eq. 46 identified by `{command}`\n(truth {vehicle.truth}; the frame, rotor "

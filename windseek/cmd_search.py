@@ -33,7 +33,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", default=None, help="strategy file (TOML with a [strategy] table)")
     p.add_argument("--time-limit", type=float, default=None, help="simulated seconds per trial "
                    "(default: the scenario's duration)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout (summary + trials)")
+    p.add_argument("--vehicle", default=None, help="vehicle file (name or path) of the estimator's force model, e.g. "
+                   "one written by `windseek identify` (default: the scenario vehicle's own model)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout (summary + trials; it says "
+                   "which truth the world flew and which model the estimator used)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -49,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     results = run_batch(
         args.scenario, args.strategy, args.wind, args.trials, seed=args.seed, jobs=args.jobs,
         params_path=args.params, time_limit_s=args.time_limit, progress=not (args.json or args.no_progress),
+        model=args.vehicle,
     )
     s = summarize(results)
     if args.json:
@@ -57,6 +61,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(json_safe(out), allow_nan=False))
         return 0
     print(f"{s['strategy']} with {s['wind']} wind on {s['scenario']}: {s['trials']} trials")
+    if s["estimator_model"]:
+        print(f"  world: {s['world_truth']}; estimator model: {s['estimator_model']}")
     radius = results[0].success_radius_m
     print(f"  success rate: {100 * s['success_rate']:.0f} % ({s['successes']}/{s['trials']} declared within "
           f"{radius:g} m; within 3 m {100 * s['within_3m_rate']:.0f} %, within 5 m {100 * s['within_5m_rate']:.0f} %)")

@@ -35,6 +35,7 @@ from mission.strategies.params import CommonParams, load_params
 from mission.wind_source import make_wind_source
 from sitl.scenario import Scenario, load_scenario
 from sitl.simulation import Simulation
+from vehicle.vehicle_file import load_vehicle
 
 #: A declaration within this horizontal distance of the true source is a success [m] (the
 #: bio-inspired strategies' tables; ``SUCCESS_RADIUS_BY_STRATEGY`` overrides it per strategy).
@@ -109,6 +110,10 @@ class TrialResult:
     success_radius_m: float = SUCCESS_RADIUS_M
     credible_radius_m: float = math.nan
     credible_contains: bool | None = None
+    #: The world's vehicle and force model ("nasa-quad: bet"), and the estimator's model (its vehicle file's
+    #: name and where the model came from); empty when no estimator ran.
+    world_truth: str = ""
+    estimator_model: str = ""
 
     @property
     def path_ratio(self) -> float:
@@ -126,6 +131,14 @@ class TrialResult:
         return d
 
 
+def describe_model(source: object) -> str:
+    """The estimator's force model of a wind source, in one line ('' when it runs no estimator)."""
+    model = getattr(source, "_model", None)
+    if model is None:
+        return ""
+    return f"{model.model_name}: {model.model_info.get('source', 'its vehicle file')}"
+
+
 def run_trial(
     scenario: str | Scenario,
     strategy: str,
@@ -138,6 +151,7 @@ def run_trial(
     keep_track: bool = False,
     imu_decimation: int = IMU_DECIMATION,
     recorder: Any = None,
+    model: str | None = None,
 ) -> TrialResult:
     """Fly one seeded search trial in lockstep and score it.
 
@@ -154,6 +168,7 @@ def run_trial(
             ``IMU_DECIMATION``).
         recorder: a :class:`recording.trial.TrialRecorder` (or anything with ``attach(sim, vehicle,
             strategy, params)`` and ``finish(result)``): records the trial to a ``.rrd``.
+        model: vehicle file (name or path) of the estimator's force model; default the world vehicle's own.
     """
     wall0 = time.perf_counter()
     sc = load_scenario(scenario) if isinstance(scenario, str) else scenario
@@ -163,7 +178,9 @@ def run_trial(
     sim = Simulation(sc, seed=seed, autostart_route=False, record_truth=(wind == "estimated"))
     seed = sim.seed
     strat = make_strategy(strategy)
-    vehicle = LockstepVehicle(sim, make_wind_source(wind, sim, p, imu_decimation=imu_decimation), p.rate_hz)
+    model_v = load_vehicle(model) if model else None
+    source = make_wind_source(wind, sim, p, imu_decimation=imu_decimation, model=model_v)
+    vehicle = LockstepVehicle(sim, source, p.rate_hz)
     limit = sc.duration_s if time_limit_s is None else float(time_limit_s)
     limits = SafetyLimits(box_min_ned=(-geofence_m, -geofence_m, -500.0), box_max_ned=(geofence_m, geofence_m, 0.0),
                           min_altitude_m=0.5, max_altitude_m=500.0, time_limit_s=limit)  # fmt: skip
@@ -198,6 +215,7 @@ def run_trial(
         start_distance_m=start_dist, cause=cause, end_state=res.state,
         n_detections=_memory(strat)[0], hit_rate_at_last=round(_memory(strat)[1], 3),
         diag=getattr(strat, "diag", {}), wall_s=time.perf_counter() - wall0, track=score.track,
+        world_truth=f"{sim.vehicle.name}: {sim.vehicle.truth}", estimator_model=describe_model(source),
         reach_path_m=score.reach_path,
         verifications=_verification_records(strat, src, sim.t, score.path_t, score.path_m),
         wind_rmse_ned=score.wind_rmse(),
