@@ -398,7 +398,8 @@ class LiveCore:
                 self._w_now = w
         self.est.imu(t, acc, gyr)
         air = self.landed_state == MAV_LANDED_STATE_IN_AIR
-        if self.fit.sample(t, acc, gyr, self._w_now, air, self.est.airspeed_body(), self.est.wind_sigma_h() < 1.0):
+        est = self.est
+        if self.fit.sample(t, acc, gyr, self._w_now, air, est.airspeed_body(), est.wind_sigma_h() < 1.0, est.last_nis):
             line = self.fit.mismatch
             self.model_note = line if self.model_note is None else f"{self.model_note}; {line}"
             self.note(str(line))

@@ -149,6 +149,7 @@ class WindEstimator(EstimatorOutputs):
         self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
         self._dt_last = 0.0
         self.transients = 0  # times the transient detector fired
+        self.last_nis = math.nan  # the last accelerometer update's normalized innovation squared
         self._R: np.ndarray | None = None  # attitude DCM body->NED
         self._q_att: np.ndarray | None = None
         self._rates = np.zeros(3)
@@ -328,6 +329,9 @@ class WindEstimator(EstimatorOutputs):
         if ok:
             if kind == "accel":
                 self._watch_innovation(m.y, m.S)
+                # The normalized innovation squared y' S^-1 y (chi-square with 3 degrees of freedom when the
+                # model and the noise are right): estimator.model_fit's running innovation test reads it.
+                self.last_nis = float(m.y @ np.linalg.solve(m.S, m.y))
             i = self._i_scale
             if i >= 0:
                 m.K[i, :] = 0.0

@@ -139,7 +139,7 @@ def _run_segment(est: WindEstimator, motor: MotorCommandModel, parts: list[Serie
                 steps += 1
                 if fit is not None:
                     converged = est.wind_sigma_h() < 1.0
-                    fit.sample(t, imu.v[i, :3], g, est.rotor_speeds, True, est.airspeed_body(), converged)
+                    fit.sample(t, imu.v[i, :3], g, est.rotor_speeds, True, est.airspeed_body(), converged, est.last_nis)
                 e = est.estimate()
                 if t >= t_next:
                     t_next = t + dt_out
