@@ -33,14 +33,15 @@ PAPER = {"x": (99.5, 0.1676), "y": (88.7, 0.1574), "z": (95.0, 0.0060), "l": (92
          "m": (94.4, 0.1370), "n": (54.3, 0.4588)}  # fmt: skip
 
 
-def run(vehicle_name: str, seed: int, sigma: float, repeat: int) -> None:
+def run(vehicle_name: str, seed: int, sigma: float, repeat: int, amplitudes: tuple[float, ...] | None = None) -> None:
     sc = load_scenario("calm")
     sc = replace(sc, vehicle=vehicle_name, turbulence=KaimalTurbulence(sigma_u=sigma) if sigma > 0 else None)
     v = load_vehicle(vehicle_name)
     hd = v.n_rotors * v.control["hover_speed"] ** 2
     t0 = time.perf_counter()
-    fit_data = fly(sc, seed, design(ManoeuvreSpec(), hd), v)
-    val_data = fly(sc, seed + 1000, design(ManoeuvreSpec(duration_s=60.0, seed=1), hd), v)
+    amps = {} if amplitudes is None else {"amplitudes": amplitudes}
+    fit_data = fly(sc, seed, design(ManoeuvreSpec(**amps), hd), v)  # type: ignore[arg-type]
+    val_data = fly(sc, seed + 1000, design(ManoeuvreSpec(duration_s=60.0, seed=1, **amps), hd), v)  # type: ignore[arg-type]
     fly_s = time.perf_counter() - t0
     identify(fit_data, v, val_data)  # warm-up (numba, statsmodels imports)
     times = []
@@ -68,9 +69,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sigma", type=float, default=0.2, help="turbulence sigma_u of the calm air, m/s")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--amplitudes", default=None, help="motor multisine peaks (delta_t,a,e,r; default the design's)")
     args = ap.parse_args(argv)
+    amps = tuple(float(x) for x in args.amplitudes.split(",")) if args.amplitudes else None
     for name in args.vehicles.split(","):
-        run(name, args.seed, args.sigma, args.repeat)
+        run(name, args.seed, args.sigma, args.repeat, amps)
     return 0
 
 

@@ -23,6 +23,7 @@ lag error at low frequency).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,7 +69,7 @@ def rotor_speeds(data: FlightData, t: np.ndarray, tau_s: float, blend_hz: float 
         return esc
     dt = float(t[1] - t[0])
     cmd = _interp(t, data.t, data.rotor_commands)
-    a = dt / (tau_s + dt)  # the motor's first-order lag, discretized (backward Euler)
+    a = 1.0 - math.exp(-dt / tau_s)  # the motor's first-order lag, exact for a command held over a sample
     model = lfilter([a], [1.0, a - 1.0], cmd, axis=0, zi=np.tile((1.0 - a) * esc[0], (1, 1)))[0]
     sos = butter(2, blend_hz, fs=1.0 / dt, output="sos")
     return model + sosfiltfilt(sos, esc - model, axis=0)

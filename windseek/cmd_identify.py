@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--validation-duration", type=float, default=60.0, help="excitation length of the validation "
                    "manoeuvre, s")
     p.add_argument("--band", default="0.2,3.0", help="motor multisine band, Hz (low,high; default 0.2,3.0)")
-    p.add_argument("--amplitudes", default="0.12,0.035,0.035,0.10", help="motor multisine peaks of delta_t, "
+    p.add_argument("--amplitudes", default="0.15,0.08,0.08,0.15", help="motor multisine peaks of delta_t, "
                    "delta_a, delta_e, delta_r as fractions of the hover delta_t")
     p.add_argument("--speed", type=float, default=8.0, help="peak of each horizontal velocity reference, m/s")
     p.add_argument("--climb", type=float, default=2.0, help="peak of the vertical velocity reference, m/s")
