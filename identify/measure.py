@@ -124,9 +124,12 @@ def domain_table(ee: EquationError, mixing: np.ndarray) -> dict[str, list[float]
             for name, c in zip(DOMAIN_VARIABLES, cols, strict=True)}  # fmt: skip
 
 
-def domain_limits(ee: EquationError) -> tuple[float, float]:
+def domain_limits(ee: EquationError, floor_m_s: float = 1.0) -> tuple[float, float]:
     """Where the identified model's airspeed regressors saturate (m/s): 1.5 times the 99th percentile of
-    the horizontal and of the vertical airspeed the fit saw (the model is fitted with them applied)."""
+    the horizontal and of the vertical airspeed the fit saw (the model is fitted with them applied), at
+    least ``floor_m_s`` (a hover record has no airspeed to speak of; a zero limit would divide by it)."""
     u = ee.use
     vh = np.hypot(ee.airspeed[u, 0], ee.airspeed[u, 1])
-    return 1.5 * float(np.percentile(vh, 99)), 1.5 * float(np.percentile(np.abs(ee.airspeed[u, 2]), 99))
+    vz = np.abs(ee.airspeed[u, 2])
+    return (max(floor_m_s, 1.5 * float(np.percentile(vh, 99))),
+            max(floor_m_s, 1.5 * float(np.percentile(vz, 99))))  # fmt: skip

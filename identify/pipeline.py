@@ -107,14 +107,17 @@ def _axis(k: int, ee: EquationError, val: EquationError | None, f_enter: float) 
 
 
 def identify(fit_data: FlightData, vehicle: VehicleParams, validation: FlightData | None = None,
-             f_enter: float = 4.0, rate_hz: float = 50.0) -> Identification:  # fmt: skip
+             f_enter: float = 4.0, rate_hz: float = 50.0,
+             domain_m_s: tuple[float, float] | None = None) -> Identification:  # fmt: skip
     """Identify Eq. 46 for ``vehicle`` (its mass, inertia, geometry, rotor inertia and v0 are taken as
-    known) from ``fit_data``; ``validation`` (another manoeuvre) gives the prediction metrics."""
+    known) from ``fit_data``; ``validation`` (another manoeuvre) gives the prediction metrics.
+    ``domain_m_s`` fixes where the airspeed regressors saturate (horizontal, vertical; m/s) instead of
+    deriving it from the fit data (``measure.domain_limits``)."""
     fit_data.check(vehicle.n_rotors)
     if validation is not None:
         validation.check(vehicle.n_rotors)
     raw = replace(vehicle, coefficients={}, domain_airspeed_m_s=1e9, domain_vertical_airspeed_m_s=1e9)
-    vh_max, vz_max = domain_limits(equation_error(fit_data, raw, raw.as_array(), rate_hz))
+    vh_max, vz_max = domain_m_s or domain_limits(equation_error(fit_data, raw, raw.as_array(), rate_hz))
     p = replace(raw, domain_airspeed_m_s=vh_max, domain_vertical_airspeed_m_s=vz_max).as_array()
     ee = equation_error(fit_data, raw, p, rate_hz)
     val = equation_error(validation, raw, p, rate_hz) if validation is not None else None

@@ -273,7 +273,8 @@ def _fit_nothing(z: np.ndarray) -> Fit:
         cov=np.zeros((0, 0)),
         cov_white=np.zeros((0, 0)),
         partial_f=e,
-        r_squared_pct=100.0 * r_squared(z, np.zeros_like(z)),
+        # A constant z (a synthetic or a clipped record) has no variance to explain: R^2 is 0, not undefined.
+        r_squared_pct=100.0 * r_squared(z, np.zeros_like(z)) if np.ptp(z) > 0.0 else 0.0,
         s_squared=s_squared(z, np.zeros_like(z), 0),
         n_params=0,
         n_samples=z.size,
