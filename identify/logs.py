@@ -128,12 +128,12 @@ def read_log(path: Path | str, vehicle: VehicleParams, motor_order: str = "vehic
 
 def split_record(data: FlightData, holdout: float = 0.3) -> tuple[FlightData, FlightData | None, str]:
     """(fit, validation, what was done): the first ``1 - holdout`` of the record (by time) to fit, the
-    rest held out as the validation manoeuvre; when that would leave the fit under
-    :data:`MIN_DURATION_S`, the whole record is fitted and there is no validation."""
+    rest held out as the validation manoeuvre. Each part must last :data:`MIN_DURATION_S`: a shorter
+    record (under 33.3 s at 30 %) is fitted whole, without validation."""
     t_cut = data.t[0] + (1.0 - holdout) * data.duration_s
-    if t_cut - data.t[0] < MIN_DURATION_S or data.t[-1] - t_cut <= 0.0:
+    if min(t_cut - data.t[0], data.t[-1] - t_cut) < MIN_DURATION_S:
         return data, None, (f"no validation: the {data.duration_s:.1f} s record is too short to hold out "
-                            f"{holdout:.0%} and keep {MIN_DURATION_S:g} s to fit; the whole record is fitted")
+                            f"{holdout:.0%} with {MIN_DURATION_S:g} s in each part; the whole record is fitted")
     fit = _slice(data, data.t < t_cut, f" [first {1 - holdout:.0%}: {data.t[0]:.1f}-{t_cut:.1f} s]")
     val = _slice(data, data.t >= t_cut, f" [last {holdout:.0%}, held out: {t_cut:.1f}-{data.t[-1]:.1f} s]")
     return fit, val, f"validation: the last {holdout:.0%} of the record ({t_cut:.1f}-{data.t[-1]:.1f} s) held out"

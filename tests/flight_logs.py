@@ -8,7 +8,7 @@ writes and streams it, with PX4's types and rates:
   ``vehicle_local_position`` every ``nav_every``-th sample (50 Hz); ``esc_status`` (int32 rpm, ESC k =
   output k) every ``esc_every``-th sample (50 Hz); ``actuator_outputs`` (PWM floats through the
   vehicle's motor map) every sample, as PX4's high-rate logging profile; ``vehicle_land_detected``
-  (in the air) and ``vehicle_status`` (armed, offboard, quadrotor) at 1 Hz.
+  (in the air) and ``vehicle_status`` (armed, offboard, quadrotor) at 10 Hz.
 - tlog (:func:`write_tlog`): HIGHRES_IMU at the IMU rate; ATTITUDE_QUATERNION and LOCAL_POSITION_NED
   (millisecond time stamps), ESC_STATUS and ACTUATOR_OUTPUT_STATUS at 50 Hz; HEARTBEAT (PX4,
   quadrotor, armed) and EXTENDED_SYS_STATE (in the air) at 1 Hz; records ``[8-byte big-endian UNIX
@@ -66,8 +66,10 @@ def _ulog_formats(w: UlogWriter) -> None:
 
 def write_ulog(path: Path, data: FlightData, omap: OutputMap, *, drop: frozenset[str] = frozenset(),
                t0_s: float = 100.0, nav_every: int = 5, esc_every: int = 5,
-               start_ned: tuple[float, float, float] = (0.0, 0.0, -30.0)) -> Path:  # fmt: skip
-    """``data`` as a PX4 ULog at ``path`` (module docstring); topics in ``drop`` are left out."""
+               start_ned: tuple[float, float, float] = (0.0, 0.0, -30.0),
+               landed: tuple[float, float] | None = None) -> Path:  # fmt: skip
+    """``data`` as a PX4 ULog at ``path`` (module docstring); topics in ``drop`` are left out; ``landed``:
+    flight times (s) the land detector says landed (10 Hz) and the vehicle is disarmed."""
     w = UlogWriter(path)
     _ulog_formats(w)
     topics = [n for n in w.formats if n != "esc_report" and n not in drop]
@@ -78,11 +80,13 @@ def write_ulog(path: Path, data: FlightData, omap: OutputMap, *, drop: frozenset
     order = omap.order
     for k in range(data.n):
         us = int(round((t0_s + data.t[k]) * 1e6))
-        if k % 250 == 0:
+        if k % 25 == 0:
+            down = landed is not None and landed[0] <= data.t[k] < landed[1]
             if "vehicle_land_detected" in topics:
-                w.data("vehicle_land_detected", {"timestamp": us, "landed": False})
+                w.data("vehicle_land_detected", {"timestamp": us, "landed": down})
             if "vehicle_status" in topics:
-                w.data("vehicle_status", {"timestamp": us, "arming_state": 2, "nav_state": 14, "system_type": 2})
+                w.data("vehicle_status", {"timestamp": us, "arming_state": 1 if down else 2, "nav_state": 14,
+                                          "system_type": 2})  # fmt: skip
         if "sensor_combined" in topics:
             w.data("sensor_combined", {"timestamp": us, "gyro_rad": data.rates[k], "gyro_integral_dt": 4000,
                                        "accelerometer_m_s2": data.specific_force[k],

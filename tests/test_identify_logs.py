@@ -88,6 +88,14 @@ def resampled(data: FlightData, every: int, commands_every: int) -> FlightData:
                    rotor_commands=back(data.rotor_commands, commands_every))  # fmt: skip
 
 
+def cut(data: FlightData, n: int) -> FlightData:
+    """The first ``n`` samples of ``data`` (nothing excluded)."""
+    return replace(data, t=data.t[:n], specific_force=data.specific_force[:n], rates=data.rates[:n],
+                   rotor_speeds=data.rotor_speeds[:n], velocity_ned=data.velocity_ned[:n],
+                   quaternion=data.quaternion[:n], excluded=None,
+                   rotor_commands=None if data.rotor_commands is None else data.rotor_commands[:n])  # fmt: skip
+
+
 def assert_same_identification(got: Identification, ref: Identification) -> None:
     for a, r in ref.axes.items():
         g = got.axes[a]
@@ -154,6 +162,29 @@ def test_motor_order_maps_esc_and_outputs_to_rotors(flights: Flights) -> None:
     assert order != (0, 1, 2, 3)
 
 
+def test_window_and_a_landing_between_airborne_segments(flights: Flights, tmp_path: Path) -> None:
+    """Two airborne segments (the land detector says landed 12-15 s): the record spans both, the time
+    between is excluded, and so is everything within 1 m of where the log said the vehicle stood."""
+    v = flights.vehicle
+    path = write_ulog(tmp_path / "hops.ulg", cut(flights.fit, 30 * 250 + 1), motor_map(v), landed=(12.0, 15.0))
+    lf = read_log(path, v)
+    d = lf.data
+    assert d.t[0] == pytest.approx(0.0) and d.t[-1] == pytest.approx(30.0)
+    between = [e for e in d.exclusions if e.startswith("on the ground between airborne segments")]
+    assert len(between) == 1 and between[0].endswith("(12.0-15.0 s)"), d.exclusions
+    assert d.excluded is not None and d.excluded[(d.t > 12.05) & (d.t < 14.95)].all()
+    assert any(e.startswith("ground contact or ground effect (less than 1 m") for e in d.exclusions)
+    pos = lf.log.position
+    stood = float(np.median(pos.v[(pos.t >= 112.0) & (pos.t < 115.0), 2]))
+    height = stood - np.interp(d.t + 100.0, pos.t, pos.v[:, 2])
+    assert d.excluded[height < 0.95].all()
+    landed_or_saturated = ((d.t >= 12.0) & (d.t < 15.0)) | ((d.t > 26.2) & (d.t < 26.8))  # saturated 26.4-26.6 s
+    assert not d.excluded[(height > 1.05) & ~landed_or_saturated].any()
+    w = flight_data_from_log(path, v, window=(16.0, 29.0))
+    assert w.t[0] >= 16.0 and w.t[-1] <= 29.0 and w.duration_s > 12.9
+    assert not any(e.startswith("on the ground") for e in w.exclusions)
+
+
 def test_cli_holds_out_the_last_30_percent(flights: Flights, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "identified.toml"
     log = flights.logs["fit.ulg"]
@@ -188,11 +219,11 @@ def test_split_record(flights: Flights) -> None:
     assert fit.t[-1] < f.t[0] + 0.7 * f.duration_s <= val.t[0]
     assert fit.excluded is not None and val.excluded is not None and f.excluded is not None
     assert fit.excluded.sum() + val.excluded.sum() == f.excluded.sum()
-    short = replace(f, t=f.t[:3500], specific_force=f.specific_force[:3500], rates=f.rates[:3500],
-                    rotor_speeds=f.rotor_speeds[:3500], velocity_ned=f.velocity_ned[:3500],
-                    quaternion=f.quaternion[:3500], excluded=None, rotor_commands=None)  # 14 s  # fmt: skip
+    short = cut(f, 8250)  # 33 s: 30 % of it is under 10 s
     whole, none, why = split_record(short)
-    assert whole is short and none is None and why.startswith("no validation: the 14.0 s record is too short")
+    assert whole is short and none is None and why.startswith("no validation: the 33.0 s record is too short")
+    fit, val, _ = split_record(cut(f, 8500))  # 34 s: 23.8 + 10.2 s
+    assert val is not None and val.duration_s > 10.0
 
 
 def test_excitation_screen_takes_out_what_a_flight_did_not_excite(flights: Flights) -> None:
@@ -266,11 +297,8 @@ def test_other_shared_logs_are_refused_in_one_line(name: str, why: str, capsys: 
 ])  # fmt: skip
 def test_a_log_lacking_an_input_is_refused_naming_it(flights: Flights, tmp_path: Path, drop: set[str],
                                                      seconds: float, why: str) -> None:  # fmt: skip
-    f, n = flights.fit, int(seconds * 250) + 1
-    cut = replace(f, t=f.t[:n], specific_force=f.specific_force[:n], rates=f.rates[:n],
-                  rotor_speeds=f.rotor_speeds[:n], velocity_ned=f.velocity_ned[:n], quaternion=f.quaternion[:n],
-                  excluded=None, rotor_commands=None if f.rotor_commands is None else f.rotor_commands[:n])  # fmt: skip
-    path = write_ulog(tmp_path / "cut.ulg", cut, motor_map(flights.vehicle), drop=frozenset(drop))
+    part = cut(flights.fit, int(seconds * 250) + 1)
+    path = write_ulog(tmp_path / "cut.ulg", part, motor_map(flights.vehicle), drop=frozenset(drop))
     with pytest.raises(ValueError) as e:
         flight_data_from_log(path, flights.vehicle)
     assert why in str(e.value) and "\n" not in str(e.value)

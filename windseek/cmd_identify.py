@@ -29,7 +29,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=1, help="world seed of the fitting flight (the validation flight "
                    "uses seed + 1000; default 1)")
     p.add_argument("-o", "--output", help="vehicle file to write (TOML)")
-    p.add_argument("--vehicle", help="the vehicle flown (default: the scenario's)")
+    p.add_argument("--vehicle", help="the vehicle flown (default: the scenario's); with --log, required: the vehicle "
+                   "file of the airframe in the log (its mass, inertia, geometry, rotor limits and motor map are "
+                   "taken as known)")
     p.add_argument("--duration", type=float, default=120.0, help="excitation length of the fitting manoeuvre, s")
     p.add_argument("--validation-duration", type=float, default=60.0, help="excitation length of the validation "
                    "manoeuvre, s")

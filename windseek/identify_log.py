@@ -37,6 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "ArduPilot DataFlash log (.bin); needs --vehicle (the vehicle file of the airframe flown)")
     g.add_argument("--validation-log", help="an independent validation manoeuvre's log (default: the last 30 %% "
                    "of the --log airborne record is held out, the first 70 %% fitted)")
+    g.add_argument("--window", help="START,END: use only this part of the --log (s from the log's start, as on "
+                   "`windseek review`'s timeline; default: the whole airborne record)")
     g.add_argument("--motor-order", default="vehicle", choices=("vehicle", "quad-x", "windseek"),
                    help="which ESC / actuator output drives which rotor (default: the vehicle file's px4_outputs)")
     g.add_argument("--output-map", default="px4", choices=("px4", "sitl"), help="actuator outputs (PWM 1000-2000 "
@@ -46,7 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--min-height", type=float, default=1.0, help="samples less than this above the ground "
                    "level are excluded as ground contact / ground effect, m (default 1)")
     g.add_argument("--partial", action="store_true", help="write the vehicle file even when the identified model "
-                   "cannot sense the wind (marked as partial in [model.info])")
+                   "cannot sense the wind (marked as partial in [model.info]); without it such a model is not "
+                   "written and the exit status is 1")
 
 
 def run_log(args: argparse.Namespace) -> int:
@@ -87,7 +90,7 @@ def _flights(args: argparse.Namespace, vehicle: VehicleParams) -> tuple[FlightDa
 
     options: dict[str, Any] = dict(motor_order=args.motor_order, output_profile=args.output_map,
                                    thr_mdl_fac=args.thr_mdl_fac, min_height_m=args.min_height)  # fmt: skip
-    flight = read_log(args.log, vehicle, **options)
+    flight = read_log(args.log, vehicle, window=_window(args.window), **options)
     notes = [f"{Path(args.log).name}: {n}" for n in flight.notes]
     if not args.validation_log:
         fit, val, how = split_record(flight.data, HOLDOUT)
@@ -97,9 +100,22 @@ def _flights(args: argparse.Namespace, vehicle: VehicleParams) -> tuple[FlightDa
     return flight.data, val_flight.data, [*notes, f"validation: {args.validation_log}"]
 
 
+def _window(text: str | None) -> tuple[float, float] | None:
+    if not text:
+        return None
+    try:
+        a, b = (float(x) for x in text.split(","))
+    except ValueError:
+        raise ValueError(f"--window {text!r}: expected START,END in seconds (e.g. 20,140)") from None
+    if not a < b:
+        raise ValueError(f"--window {text!r}: START must be before END")
+    return a, b
+
+
 def _command(args: argparse.Namespace) -> str:
     val = f" --validation-log {args.validation_log}" if args.validation_log else ""
-    return f"windseek identify --log {args.log} --vehicle {args.vehicle}{val}"
+    win = f" --window {args.window}" if args.window else ""
+    return f"windseek identify --log {args.log} --vehicle {args.vehicle}{win}{val}"
 
 
 def _write(args: argparse.Namespace, vehicle: VehicleParams, ident: Identification, blind: list[str],
