@@ -111,15 +111,14 @@ def read_log(path: Path | str, vehicle: VehicleParams, motor_order: str = "vehic
                       source=f"{KIND_WORDS[kind]} {path.name} ({log.autopilot}, {log.vehicle_type}), airborne "
                       f"{a - origin:.1f}-{b - origin:.1f} s; IMU {src['imu']} {log.imu.rate_hz:.0f} Hz, attitude "
                       f"{src['attitude']}, velocity {src['velocity']}, rotor speeds {rotor_words}; wind assumed zero")
-    air = _in_segments(t, log.airborne_segments())
-    data = _exclude(data, ~air, "on the ground between airborne segments")
+    data = _exclude(data, ~_in_segments(t, log.airborne_segments()), "on the ground between airborne segments")
     low, ground_notes = _near_ground(log, t, min_height_m)
     notes += ground_notes
     data = _exclude(data, low, f"ground contact or ground effect (less than {min_height_m:g} m above the ground)")
     data = _exclude(data, widen(sat, t, SATURATION_MARGIN_S), sat_why)
-    for name, s in (("attitude", log.attitude), ("velocity", vel), ("rotor", log.rotors if len(log.rotors)
-                                                                            else outputs)):  # fmt: skip
-        data = _exclude(data, _far_from(s.t, t), f"no {name} sample within {MAX_GAP_S:g} s")
+    rotor_times = log.rotors.t if len(log.rotors) else outputs.t
+    for name, ts in (("attitude", log.attitude.t), ("velocity", vel.t), ("rotor", rotor_times)):
+        data = _exclude(data, _far_from(ts, t), f"no {name} sample within {MAX_GAP_S:g} s")
     usable = float(data.mask.mean()) * (b - a)
     notes.append(f"{usable:.1f} s of the {b - a:.1f} s airborne record usable after the exclusions")
     data.check(vehicle.n_rotors)
