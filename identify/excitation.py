@@ -24,7 +24,7 @@ metrics), and it is reported as not excited with the span it had. The thresholds
 here; the paper's manoeuvre (:mod:`identify.design`) exceeds every one of them several times over.
 
 :func:`wind_blind` says what the estimator would lack: a force term in X and in Y driven by the
-airspeed (how the vehicle senses horizontal wind) and the thrust C_Z_T0.
+airspeed (how the vehicle senses horizontal wind) and a thrust term.
 """
 
 from __future__ import annotations
@@ -62,6 +62,8 @@ assert set(DRIVERS) == set(COEFFICIENT_NAMES)
 #: Force terms through which the estimator senses horizontal wind (the rotor drag and the fuselage's).
 WIND_TERMS = {"x": ("C_X_Hmu", "C_X_Hmu2", "C_X_Hmuz", "C_X_Hmuv", "C_X_D"),
               "y": ("C_Y_Hmu", "C_Y_Hmu2", "C_Y_Hmuz", "C_Y_Hmuv", "C_Y_D")}  # fmt: skip
+#: Thrust terms driven by the rotor speed alone (squared, or times v0 or the induced velocity).
+THRUST_TERMS = ("C_Z_T0", "C_Z_Tv", "C_Z_Ti")
 
 
 def spans(ee: EquationError, vehicle: VehicleParams) -> dict[str, float]:
@@ -132,9 +134,9 @@ def screen(ident: Identification, vehicle: VehicleParams, f_enter: float = 4.0) 
 
 def wind_blind(ident: Identification) -> list[str]:
     """What the identified model lacks to estimate the wind (empty: nothing): an airspeed force term
-    in X and in Y, and the thrust C_Z_T0."""
+    in X and in Y, and a thrust term (:data:`THRUST_TERMS`)."""
     out = [f"no {a.upper()} force term driven by the airspeed ({', '.join(WIND_TERMS[a])})"
            for a in ("x", "y") if not set(WIND_TERMS[a]) & set(ident.coefficients)]  # fmt: skip
-    if "C_Z_T0" not in ident.coefficients:
-        out.append("no thrust term C_Z_T0")
+    if not set(THRUST_TERMS) & set(ident.coefficients):
+        out.append(f"no thrust term ({', '.join(THRUST_TERMS)})")
     return out

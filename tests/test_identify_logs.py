@@ -5,10 +5,14 @@ excitation: shortened from the paper's 2 min + 1 min for speed), written as PX4 
 IMU 250 Hz, attitude / position / ESC 50 Hz, actuator outputs 250 Hz) and stream it (a tlog: IMU 250 Hz,
 the rest 50 Hz; tests/flight_logs.py), read back and identified. The result must be the in-process
 identification of the same flight sampled as the log samples it (attitude, velocity, ESC and, for the
-tlog, the commands linearly interpolated from 50 Hz): same model structure on every axis, coefficients
-within 0.1 of their 95 % half-width, R^2 within 0.05 points, TIC within 1 %. What remains is quantization
-(float32, integer rpm, microsecond and millisecond stamps). Against the flight as recorded at 250 Hz the
-50 Hz sampling costs up to 2 R^2 points (the tlog's yaw axis: 98.6 -> 97.0 %).
+tlog, the commands linearly interpolated from 50 Hz), on the log's clock and with its exclusions: same
+model structure on every axis, coefficients within 0.02 of their 95 % half-width, R^2 within 0.01 points,
+TIC within 0.2 % (measured: 0.003, 0.001 points, 0.03 %; what remains is the integer rpm, float32 values
+are 1e-6 away). The log's clock matters: with the flight's own (4 ms steps, not rounded to microseconds)
+a sample bordering an exclusion can flip in or out, which moved coefficients by 0.1 half-width. The
+exclusions themselves agree within 1 % of the samples (a 50 Hz output log misses a motor at its limit
+for less than 20 ms). Against the flight as recorded at 250 Hz the 50 Hz sampling costs up to 2 R^2
+points (the tlog's yaw axis: 98.6 -> 97.0 %).
 
 Also: a log without ESC telemetry (rotor speeds from the actuator outputs through the vehicle's motor map
 and motor lag), the hold-out of ``--log`` alone, the shared real logs (the PX4 SITL hover identifies the
@@ -96,23 +100,40 @@ def cut(data: FlightData, n: int) -> FlightData:
                    rotor_commands=None if data.rotor_commands is None else data.rotor_commands[:n])  # fmt: skip
 
 
+def assert_saturation_as_sampled(log: FlightData, flown: FlightData) -> None:
+    """The log's exclusions are the flight's (saturation) as its outputs sample it, within 1 % of the samples
+    each way: a motor at its limit for less than a period between two logged outputs is missed, and an output
+    within half a microsecond of PWM of its limit counts as at it (tested exactly in
+    test_saturated_outputs_are_excluded_with_a_margin)."""
+    assert log.excluded is not None and flown.excluded is not None
+    assert (log.excluded & ~flown.excluded).mean() <= 0.01
+    assert (flown.excluded & ~log.excluded).mean() <= 0.01
+
+
 def assert_same_identification(got: Identification, ref: Identification) -> None:
     for a, r in ref.axes.items():
         g = got.axes[a]
         assert g.names == r.names, (a, g.names, r.names)
         for n, th, ci in zip(r.names, r.theta, r.ci95, strict=True):
-            assert abs(got.coefficients[n] - th) <= 0.1 * ci, (n, got.coefficients[n], th, ci)
-        assert abs(g.r2_pct - r.r2_pct) <= 0.05, (a, g.r2_pct, r.r2_pct)
+            assert abs(got.coefficients[n] - th) <= 0.02 * ci, (n, got.coefficients[n], th, ci)
+        assert abs(g.r2_pct - r.r2_pct) <= 0.01, (a, g.r2_pct, r.r2_pct)
         assert g.val_tic is not None and r.val_tic is not None
         for x, y in ((g.fit_tic, r.fit_tic), (g.val_tic, r.val_tic)):
-            assert abs(x - y) <= 0.01 * y, (a, x, y)
+            assert abs(x - y) <= 0.002 * y, (a, x, y)
 
 
 @pytest.mark.parametrize(("suffix", "commands_every"), [("ulg", 1), ("tlog", 5)])
 def test_log_identifies_as_the_flight_sampled_like_it(flights: Flights, suffix: str, commands_every: int) -> None:
     v = flights.vehicle
-    got = identify(flights.read(f"fit.{suffix}"), v, flights.read(f"val.{suffix}"))
-    ref = identify(resampled(flights.fit, 5, commands_every), v, resampled(flights.val, 5, commands_every))
+    fit, val = flights.read(f"fit.{suffix}"), flights.read(f"val.{suffix}")
+    refs = []
+    for log, flown in ((fit, flights.fit), (val, flights.val)):
+        assert_saturation_as_sampled(log, flown)
+        # on the log's clock (microsecond stamps: which samples border an exclusion can flip) and exclusions
+        refs.append(replace(resampled(flown, 5, commands_every), t=log.t, excluded=log.excluded,
+                            exclusions=log.exclusions))  # fmt: skip
+    got = identify(fit, v, val)
+    ref = identify(refs[0], v, refs[1])
     assert_same_identification(got, ref)
     for a, r in flights.ident.axes.items():  # the flight as recorded in-process, at 250 Hz
         assert abs(got.axes[a].r2_pct - r.r2_pct) < 2.0, (a, got.axes[a].r2_pct, r.r2_pct)
@@ -259,7 +280,7 @@ def test_excitation_screen_takes_out_what_a_flight_did_not_excite(flights: Fligh
     for n in fitted_noise:
         a = "xyzlmn"["XYZlmn".index(n[2])]
         assert s.axes[a].not_identified[n].startswith("not excited: "), (n, s.axes[a].not_identified[n])
-        assert " spans 0.0" in s.axes[a].not_identified[n] and "m/s (needs 2)" in s.axes[a].not_identified[n]
+        assert " spans 0.0" in s.axes[a].not_identified[n] and " m/s (needs " in s.axes[a].not_identified[n]
     assert [w[:4] for w in wind_blind(s)] == ["no X", "no Y"]
 
 
