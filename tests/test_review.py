@@ -8,7 +8,7 @@
 - A PX4 ULog. No ULog from a third party could be had from a package (pyulog 0.9.0-1.3.0
   sdists, px4tools 0.9.6, flightdx 0.1.0, leaf-diag 0.1.4, autopilot-tools 0.7.0 on PyPI and
   @foxglove/ulog 2.3.2, @lichtblick/ulog 1.0.0 on npm ship none), so the test writes one: the
-  project's lockstep simulator flies, a minimal ULog writer (:func:`write_ulog`, format per
+  project's lockstep simulator flies, a minimal ULog writer (``tests/ulog_writer.py``, format per
   PX4's "ULog File Format" page) stores PX4 topics, and pyulog's own ``ULog.write_ulog``
   re-serializes it, so the file the converter reads was written by pyulog.
 """
@@ -31,6 +31,7 @@ import pytest
 from link_support import free_port
 from pymavlink import mavutil
 from pyulog import ULog
+from ulog_writer import UlogWriter
 
 from recording.read import RrdLog
 from review.convert import review
@@ -242,66 +243,6 @@ def test_tlog_without_esc_runs_on_actuator_outputs(tlogs: dict[str, Path]) -> No
 
 
 # ---------------------------------------------------------------------------------------------- ULog
-class UlogWriter:
-    """Minimal ULog writer (PX4 "ULog File Format", version 1), enough for pyulog to read back.
-
-    Header: magic ``ULog\\x01\\x12\\x35``, version byte, start timestamp (uint64 us). Then
-    messages ``<uint16 size><uint8 type><payload>``: ``B`` flag bits (40 bytes, all zero),
-    ``F`` formats ``name:type field;type[n] field;...``, ``I`` info ``<uint8 key len>"type
-    key"<value>``, ``A`` subscriptions ``<uint8 multi_id><uint16 msg_id>name``, ``D`` data
-    ``<uint16 msg_id><fields packed little-endian in format order>``, ``L`` logging
-    ``<uint8 level><uint64 timestamp>text``. Every format starts with ``uint64_t timestamp``.
-    """
-
-    TYPES = {"uint64_t": "Q", "int32_t": "i", "uint32_t": "I", "uint16_t": "H", "uint8_t": "B", "float": "f",
-             "bool": "?", "char": "c", "int8_t": "b"}  # fmt: skip
-
-    def __init__(self, path: Path, t0_us: int = 0) -> None:
-        self.f = path.open("wb")
-        self.f.write(b"ULog\x01\x12\x35" + bytes([1]) + struct.pack("<Q", t0_us))
-        self._msg("B", bytes(40))
-        self.formats: dict[str, list[tuple[str, int, str]]] = {}
-        self.ids: dict[str, int] = {}
-
-    def _msg(self, kind: str, payload: bytes) -> None:
-        self.f.write(struct.pack("<HB", len(payload), ord(kind)) + payload)
-
-    def info(self, key: str, value: str) -> None:
-        k = f"char[{len(value)}] {key}".encode()
-        self._msg("I", bytes([len(k)]) + k + value.encode())
-
-    def format(self, name: str, fields: list[tuple[str, int, str]]) -> None:
-        """fields: (type, array length or 0, name); nested types by their format name."""
-        self.formats[name] = fields
-        text = "".join(f"{t}[{n}] {f};" if n else f"{t} {f};" for t, n, f in fields)
-        self._msg("F", f"{name}:{text}".encode())
-
-    def subscribe(self, name: str) -> None:
-        self.ids[name] = len(self.ids)
-        self._msg("A", struct.pack("<BH", 0, self.ids[name]) + name.encode())
-
-    def _pack(self, name: str, values: dict) -> bytes:
-        out = b""
-        for t, n, f in self.formats[name]:
-            v = values.get(f, [0] * n if n else 0)
-            items = (list(v) + [0] * n)[:n] if n else [v]  # arrays padded with zeros to their length
-            for x in items:
-                if t in self.TYPES:
-                    out += struct.pack("<" + self.TYPES[t], x)
-                else:
-                    out += self._pack(t, x if isinstance(x, dict) else {})
-        return out
-
-    def data(self, name: str, values: dict) -> None:
-        self._msg("D", struct.pack("<H", self.ids[name]) + self._pack(name, values))
-
-    def log(self, t_us: int, text: str, level: str = "6") -> None:
-        self._msg("L", struct.pack("<BQ", ord(level), t_us) + text.encode())
-
-    def close(self) -> None:
-        self.f.close()
-
-
 PX4_QUAD_X_OUT = (0, 3, 1, 2)  # PX4 output/ESC i drives rotor PX4_QUAD_X[i] = (0, 2, 3, 1): inverse map
 
 

@@ -1,4 +1,5 @@
-"""``windseek identify``: the paper's system identification of Eq. 46, for any vehicle (see identify/)."""
+"""``windseek identify``: the paper's system identification of Eq. 46, for any vehicle (see identify/): flown
+in-process (SCENARIO), or from a flight log (``--log``, :mod:`windseek.identify_log`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import math
 import sys
 from pathlib import Path
 
+from windseek import identify_log
 from wire.jsonsafe import json_safe
 
 
@@ -19,13 +21,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "motors plus a low-frequency velocity and heading reference) and an independent validation manoeuvre, "
         "then choose the model structure by step-wise regression, estimate it by equation-error least squares, "
         "and write a vehicle file with the estimates, their 95 %% intervals, the fit and the identified domain. "
-        "SCENARIO flies it in-process in windseek's world (its vehicle, its truth model, its wind: e.g. `calm`).",
+        "SCENARIO flies it in-process in windseek's world (its vehicle, its truth model, its wind: e.g. `calm`). "
+        "--log FILE identifies from a flight log instead (PX4 ULog, MAVLink tlog or ArduPilot DataFlash), with "
+        "--vehicle giving the known constants; the wind is then assumed zero.",
     )
     p.add_argument("scenario", nargs="?", help="scenario to fly the manoeuvres in (e.g. calm)")
     p.add_argument("--seed", type=int, default=1, help="world seed of the fitting flight (the validation flight "
                    "uses seed + 1000; default 1)")
     p.add_argument("-o", "--output", help="vehicle file to write (TOML)")
-    p.add_argument("--vehicle", help="the vehicle flown (default: the scenario's)")
+    p.add_argument("--vehicle", help="the vehicle flown (default: the scenario's); with --log, required: the vehicle "
+                   "file of the airframe in the log (its mass, inertia, geometry, rotor limits and motor map are "
+                   "taken as known)")
     p.add_argument("--duration", type=float, default=120.0, help="excitation length of the fitting manoeuvre, s")
     p.add_argument("--validation-duration", type=float, default=60.0, help="excitation length of the validation "
                    "manoeuvre, s")
@@ -37,6 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", help="write measured vs modelled force and moment per axis (PNG)")
     p.add_argument("--json", action="store_true", help="print one JSON object: per axis R^2 %%, s^2, TIC and "
                    "NRMSE on the fitting and the validation manoeuvre")
+    identify_log.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -58,8 +65,15 @@ def run(args: argparse.Namespace) -> int:
     from sitl.scenario import load_scenario
     from vehicle.vehicle_file import format_vehicle_file, load_vehicle
 
+    if args.scenario and args.log:
+        raise ValueError(f"give a SCENARIO ({args.scenario}) or --log FILE ({args.log}), not both")
+    if args.log:
+        return identify_log.run_log(args)
+    if args.validation_log:
+        raise ValueError("--validation-log needs --log FILE (a SCENARIO flies its own validation manoeuvre)")
     if not args.scenario:
-        raise ValueError("give a SCENARIO to fly the manoeuvres in (e.g. `windseek identify calm -o my.toml`)")
+        raise ValueError("give a SCENARIO to fly the manoeuvres in (e.g. `windseek identify calm -o my.toml`), or "
+                         "--log FILE --vehicle BASE to identify from a flight log")
     scenario = load_scenario(args.scenario)
     vehicle = load_vehicle(args.vehicle or scenario.vehicle)
     band = _floats(args.band, 2, "band")
