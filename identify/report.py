@@ -38,6 +38,9 @@ def identified_vehicle(base: VehicleParams, ident: Identification, command: str 
         "fit": {a: {k: v for k, v in m.items() if v is not None} for a, m in ident.table().items()},
         "domain_p5_p95": ident.domain,
         "not_identified": {a: r.not_identified for a, r in ident.axes.items() if r.not_identified},
+        # The fitting flight's accelerometer bias (m/s^2, FRD, with its 95 % half-width): not the vehicle's.
+        "accelerometer_bias_m_s2": {a: [r.bias[0] / base.mass_kg, r.bias[1] / base.mass_kg]
+                                    for a, r in ident.axes.items() if r.bias is not None},
     }
     return replace(base, coefficients=dict(ident.coefficients), ci95=dict(ident.ci95),
                    domain_airspeed_m_s=ident.domain_airspeed_m_s,
@@ -67,6 +70,10 @@ def format_report(ident: Identification, vehicle_name: str) -> str:
     for r in ident.axes.values():
         for n, th, ci in zip(r.names, r.theta, r.ci95, strict=True):
             out.append(f"  {n:10s} {th:+.5e} +- {ci:.2e}")
+    biases = [(a, r.bias) for a, r in ident.axes.items() if r.bias is not None]
+    if biases:
+        out.append("  constant force fitted beside the model, not part of it (the flight's accelerometer bias times "
+                   "the mass), N: " + ", ".join(f"{a.upper()} {b[0]:+.4f} +- {b[1]:.4f}" for a, b in biases))
     out.append("")
     out.append("not identified (never used by the model):")
     any_missing = False
@@ -101,6 +108,9 @@ def plot_fit(path: Path | str, ident: Identification, fit_ee: EquationError, val
             ax = axes[k, c]
             sel = k == AXIS_OF
             y = ee.X[:, sel] @ theta[sel]
+            bias = ident.axes[AXIS_NAMES[k]].bias
+            if bias is not None:  # the fitting flight's own; the validation's is its mean residual
+                y = y + (bias[0] if title == "fitting" else float(np.mean(ee.z[ee.use, k] - y[ee.use])))
             ax.plot(ee.t, ee.z[:, k], lw=0.7, label="measured")
             ax.plot(ee.t, y, lw=0.7, label="model")
             ax.set_ylabel(f"{AXIS_NAMES[k].upper()} ({UNITS[AXIS_NAMES[k]]})")

@@ -20,6 +20,7 @@ from identify.fly.world import fly
 from identify.pipeline import identify
 from identify.report import identified_vehicle
 from sitl.scenario import Scenario, load_scenario
+from vehicle.params import VehicleParams
 from vehicle.rotor_model import wrench
 from vehicle.vehicle_file import load_vehicle
 
@@ -31,17 +32,26 @@ def _calm(vehicle: str, turbulence: bool = True) -> Scenario:
     return sc if turbulence else replace(sc, turbulence=None)
 
 
-def test_data_from_the_model_structure_itself_are_recovered_to_the_noise() -> None:
-    """The world flies the identified Eq. 46 of nasa-quad (truth = "model"), no turbulence: the identification
-    explains the forces to the sensors' noise and finds the same force *function* back over the domain it
-    flew; the well-conditioned terms (thrust, the rotors' H-force) each within their 95 % interval (widened
-    by 3 %). Individual drag terms are not compared: u|u| and u v0 are near-collinear over a 4 m/s domain,
-    and the stepwise fit may trade one for the other at no cost to the forces."""
+@pytest.fixture(scope="module")
+def model_world() -> tuple[VehicleParams, FlightData, FlightData]:
+    """nasa-quad's identified Eq. 46 as the world's truth, no turbulence: a fitting and a validation flight."""
     truth = replace(load_vehicle("nasa-quad"), truth="model")
     hd = truth.n_rotors * truth.control["hover_speed"] ** 2
     sc = _calm("nasa-quad", turbulence=False)
     fd = fly(sc, 11, design(ManoeuvreSpec(duration_s=60.0), hd), truth)
     vd = fly(sc, 12, design(ManoeuvreSpec(duration_s=30.0, seed=1), hd), truth)
+    return truth, fd, vd
+
+
+def test_data_from_the_model_structure_itself_are_recovered_to_the_noise(
+    model_world: tuple[VehicleParams, FlightData, FlightData],
+) -> None:
+    """The world flies the identified Eq. 46 of nasa-quad (truth = "model"), no turbulence: the identification
+    explains the forces to the sensors' noise and finds the same force *function* back over the domain it
+    flew; the well-conditioned terms (thrust, the rotors' H-force) each within their 95 % interval (widened
+    by 3 %). Individual drag terms are not compared: u|u| and u v0 are near-collinear over a 4 m/s domain,
+    and the stepwise fit may trade one for the other at no cost to the forces."""
+    truth, fd, vd = model_world
     # The truth's own saturation of the airspeed regressors, or the coefficients would absorb the difference.
     res = identify(fd, truth, vd, domain_m_s=(truth.domain_airspeed_m_s, truth.domain_vertical_airspeed_m_s))
     for axis in ("x", "y", "z"):
@@ -61,6 +71,27 @@ def test_data_from_the_model_structure_itself_are_recovered_to_the_noise() -> No
     err = np.abs(f_found - f_true).max(axis=0)
     weight = truth.mass_kg * 9.80665
     assert err[0] < 0.01 * weight and err[1] < 0.01 * weight and err[2] < 0.01 * weight, err / weight
+
+
+def test_an_accelerometer_offset_is_the_flights_bias_not_the_vehicles(
+    model_world: tuple[VehicleParams, FlightData, FlightData],
+) -> None:
+    """0.05 m/s^2 more on the fitting flight's x accelerometer and -0.03 on y: the fitted X and Y biases
+    take m times that, the drag terms do not move (an unmodelled offset used to bend them by as much)."""
+    truth, fd, vd = model_world
+    dom = (truth.domain_airspeed_m_s, truth.domain_vertical_airspeed_m_s)
+    base = identify(fd, truth, vd, domain_m_s=dom)
+    shifted = identify(replace(fd, specific_force=fd.specific_force + [0.05, -0.03, 0.0]), truth, vd, domain_m_s=dom)
+    for axis, offset in (("x", 0.05), ("y", -0.03)):
+        b0, b1 = base.axes[axis].bias, shifted.axes[axis].bias
+        assert b0 is not None and b1 is not None
+        assert b1[0] - b0[0] == pytest.approx(truth.mass_kg * offset, rel=0.02), axis
+        assert base.axes[axis].names == shifted.axes[axis].names
+        for th0, th1, ci in zip(base.axes[axis].theta, shifted.axes[axis].theta, base.axes[axis].ci95, strict=True):
+            assert abs(th1 - th0) < 0.05 * ci, (axis, th0, th1, ci)
+        # The validation flight carries its own bias: its metrics do not see the fitting flight's.
+        assert shifted.axes[axis].val_tic == pytest.approx(base.axes[axis].val_tic, rel=1e-6)
+    assert base.axes["z"].bias is None and base.axes["l"].bias is None
 
 
 def test_windseek_identify_writes_a_vehicle_file_the_estimator_uses(tmp_path: Path) -> None:
