@@ -13,6 +13,8 @@ The map, step by step (every value is a field of :class:`OutputMap`, set per veh
    PX4 quad-X (airframe 4001_quad_x, control allocation CA_ROTOR0..3 positions PX/PY in FRD):
    motor 1 front-right (1, 1), 2 rear-left (-1, -1), 3 front-left (1, -1), 4 rear-right (-1, 1),
    hence :data:`PX4_QUAD_X` = (0, 2, 3, 1). The windseek SITL numbers its outputs like its rotors.
+   With a vehicle file the PX4 order is the file's ``[frame] px4_outputs`` (:func:`px4_order`):
+   PX4_QUAD_X for the paper's quad X, the identity for px4-sih-quadx (its rotors are in PX4's order).
 2. Raw value -> normalized command u in [0, 1]: u = (raw - raw_min) / (raw_max - raw_min),
    clipped at 1. PX4 writes its output driver's values: PWM 1000-2000 us by default
    (PWM_MAIN_MINn/MAXn), and the same 1000-2000 range in SITL and SIH (``pwm_out_sim``). A value
@@ -48,6 +50,19 @@ PX4_QUAD_X: tuple[int, ...] = (0, 2, 3, 1)
 MOTOR_ORDERS = {"sitl": SITL_ORDER, "px4": PX4_QUAD_X}
 
 
+def px4_order(params: VehicleParams) -> tuple[int, ...]:
+    """Rotor index of each PX4 output from the vehicle file's ``[frame] px4_outputs`` (PX4_QUAD_X for the
+    paper's quad X; identity for a vehicle listed in PX4's own order, such as px4-sih-quadx); PX4_QUAD_X when
+    the file's list does not number every rotor once."""
+    outs = tuple(params.px4_outputs)
+    if sorted(outs) != list(range(params.n_rotors)):
+        return PX4_QUAD_X
+    order = [0] * len(outs)
+    for rotor, out in enumerate(outs):
+        order[out] = rotor
+    return tuple(order)
+
+
 @dataclass(frozen=True)
 class OutputMap:
     """Actuator outputs -> commanded rotor speeds (see the module docstring for each field)."""
@@ -72,13 +87,13 @@ class OutputMap:
     @classmethod
     def for_vehicle(cls, params: VehicleParams, profile: str = "px4", thr_mdl_fac: float | None = None,
                     raw_range: tuple[float, float] = (1000.0, 2000.0)) -> OutputMap:  # fmt: skip
-        """``px4``: quad-X order, omega_min..omega_max of the vehicle file; ``sitl``: the windseek SITL's
-        outputs (its rotor order, 0..omega_max linear)."""
+        """``px4``: the vehicle file's PX4 output order (:func:`px4_order`), omega_min..omega_max of the vehicle
+        file; ``sitl``: the windseek SITL's outputs (its rotor order, 0..omega_max linear)."""
         if profile not in MOTOR_ORDERS:
             raise ValueError(f"motor order {profile!r}: choose one of {', '.join(MOTOR_ORDERS)}")
         w_min = 0.0 if profile == "sitl" else params.rotor_speed_min_rad_s
-        return cls(MOTOR_ORDERS[profile], raw_range[0], raw_range[1], w_min, params.rotor_speed_max_rad_s,
-                   thr_mdl_fac)  # fmt: skip
+        order = px4_order(params) if profile == "px4" else MOTOR_ORDERS[profile]
+        return cls(order, raw_range[0], raw_range[1], w_min, params.rotor_speed_max_rad_s, thr_mdl_fac)
 
     def speed(self, u: float) -> float:
         """Rotor speed (rad/s) for the normalized command u in [0, 1]."""
