@@ -147,6 +147,7 @@ class ModelFit:
         self.innovation = InnovationCheck(vehicle.model_name, self.thrust.config.window_s, self.thrust.config.confirm)
         self.vehicle_name = vehicle.name
         self.model_source = str(vehicle.model_info.get("source", "the vehicle file's [model]"))
+        self.mismatch_t_s: float | None = None  # autopilot time (s) of the sample that confirmed the mismatch
 
     @property
     def mismatch(self) -> str | None:
@@ -175,11 +176,12 @@ class ModelFit:
         (once: the first one latches)."""
         if self.mismatch is not None:
             return False
-        if self.thrust.sample(t, acc, gyr, speeds, airborne):
-            return True
-        if self.innovation.sample(t, nis, airborne and converged):
-            return True
-        return self.domain.sample(t, airspeed_body if converged else None, airborne)
+        found = (self.thrust.sample(t, acc, gyr, speeds, airborne)
+                 or self.innovation.sample(t, nis, airborne and converged)
+                 or self.domain.sample(t, airspeed_body if converged else None, airborne))
+        if found:
+            self.mismatch_t_s = t
+        return found
 
     def summary(self) -> dict[str, object]:
         """What the checks found, for a program's summary."""
@@ -189,5 +191,6 @@ class ModelFit:
                 "thrust_band": [round(b, 3) for b in self.band],
                 "airspeed_body_m_s": None if m is None else [round(float(x), 2) for x in m],
                 "innovation_nis_mean": None if self.innovation.mean is None else round(self.innovation.mean, 3),
+                "mismatch_t_s": None if self.mismatch_t_s is None else round(self.mismatch_t_s, 3),
                 "identified_box_m_s": None if self.domain.box is None
                 else self.domain.box.round(2).tolist()}  # fmt: skip
