@@ -6,6 +6,7 @@ what it is, and which seeds it was chosen on, is in the field comments.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -148,7 +149,14 @@ class EstimatorConfig:
 
     @classmethod
     def for_vehicle(cls, vehicle: Any, **overrides: Any) -> EstimatorConfig:
-        """The preset a vehicle file calls for (:func:`preset_for`)."""
+        """The preset a vehicle file calls for (:func:`preset_for`). When the file records the accelerometer
+        noise its identification flight measured (``[model.info] accel_noise_m_s2``, 1-sigma per sample, FRD:
+        ``windseek identify --connect``; PX4 SIH's is 0.3-1.2 m/s^2, ten times windseek's IMU), the
+        accelerometer noise is the preset's and the measured one added in quadrature."""
+        noise = (getattr(vehicle, "model_info", {}) or {}).get("accel_noise_m_s2")
+        if noise is not None and "accel_noise_m_s2" not in overrides and len(noise) == 3:
+            base = cls.preset(preset_for(vehicle)).accel_noise_m_s2
+            overrides["accel_noise_m_s2"] = tuple(math.hypot(a, float(b)) for a, b in zip(base, noise, strict=True))
         return cls.preset(preset_for(vehicle), **overrides)
 
     @classmethod
