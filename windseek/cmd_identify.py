@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from windseek import identify_log
+from windseek import identify_connect
 from wire.jsonsafe import json_safe
 
 
@@ -23,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "and write a vehicle file with the estimates, their 95 %% intervals, the fit and the identified domain. "
         "SCENARIO flies it in-process in windseek's world (its vehicle, its truth model, its wind: e.g. `calm`). "
         "--log FILE identifies from a flight log instead (PX4 ULog, MAVLink tlog or ArduPilot DataFlash), with "
-        "--vehicle giving the known constants; the wind is then assumed zero.",
+        "--vehicle giving the known constants; the wind is then assumed zero. --connect URL --vehicle BASE flies "
+        "it on a PX4 through MAVLink (identify/fly/px4.py).",
     )
     p.add_argument("scenario", nargs="?", help="scenario to fly the manoeuvres in (e.g. calm)")
     p.add_argument("--seed", type=int, default=1, help="world seed of the fitting flight (the validation flight "
@@ -38,12 +40,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--band", default="0.2,3.0", help="motor multisine band, Hz (low,high; default 0.2,3.0)")
     p.add_argument("--amplitudes", default="0.15,0.08,0.08,0.15", help="motor multisine peaks of delta_t, "
                    "delta_a, delta_e, delta_r as fractions of the hover delta_t")
-    p.add_argument("--speed", type=float, default=8.0, help="peak of each horizontal velocity reference, m/s")
-    p.add_argument("--climb", type=float, default=2.0, help="peak of the vertical velocity reference, m/s")
+    p.add_argument("--speed", type=float, default=None, help="peak of each horizontal velocity reference, m/s "
+                   "(default 8; 3 with --connect)")
+    p.add_argument("--climb", type=float, default=None, help="peak of the vertical velocity reference, m/s "
+                   "(default 2; 1 with --connect)")
     p.add_argument("--plot", help="write measured vs modelled force and moment per axis (PNG)")
     p.add_argument("--json", action="store_true", help="print one JSON object: per axis R^2 %%, s^2, TIC and "
                    "NRMSE on the fitting and the validation manoeuvre")
     identify_log.add_arguments(p)
+    identify_connect.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -67,10 +72,14 @@ def run(args: argparse.Namespace) -> int:
 
     if args.scenario and args.log:
         raise ValueError(f"give a SCENARIO ({args.scenario}) or --log FILE ({args.log}), not both")
+    if args.connect and args.log:
+        raise ValueError(f"give --log FILE ({args.log}) or --connect URL ({args.connect}), not both")
     if args.log:
         return identify_log.run_log(args)
     if args.validation_log:
         raise ValueError("--validation-log needs --log FILE (a SCENARIO flies its own validation manoeuvre)")
+    if args.connect:
+        return identify_connect.run_connect(args)
     if not args.scenario:
         raise ValueError("give a SCENARIO to fly the manoeuvres in (e.g. `windseek identify calm -o my.toml`), or "
                          "--log FILE --vehicle BASE to identify from a flight log")
@@ -78,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
     vehicle = load_vehicle(args.vehicle or scenario.vehicle)
     band = _floats(args.band, 2, "band")
     amps = _floats(args.amplitudes, 4, "amplitudes")
+    args.speed = 8.0 if args.speed is None else args.speed
+    args.climb = 2.0 if args.climb is None else args.climb
     common = dict(band_hz=band, amplitudes=amps, speed_m_s=args.speed, climb_m_s=args.climb)
     fit_spec = ManoeuvreSpec(duration_s=args.duration, seed=0, **common)
     val_spec = ManoeuvreSpec(duration_s=args.validation_duration, seed=1, **common)
