@@ -160,6 +160,8 @@ def test_record_scaled_imu_and_esc_telemetry_only_when_asked_for() -> None:
     _feed(rec, 0.0, 12.0, imu="SCALED_IMU")
     rec.sink("ESC_STATUS", {"time_usec": 5_000_000, "index": 0, "rpm": [6000, 6000, 6000, 6000]}, 5.0, 1, 1)
     assert rec.ignored_esc == 1 and rec.counts["ESC_STATUS"] == 0  # PX4 SITL's placeholder: not used
+    for _ in range(2):  # a repeated time stamp (PX4 resends a sample): kept once, never compared by value
+        rec.sink("ATTITUDE_QUATERNION", {"time_boot_ms": 6000, "q1": 1.0, "q2": 0.0, "q3": 0.0, "q4": 0.0}, 6.0, 1, 1)
     d = rec.flight_data(0.5, 11.5, "test")
     assert np.allclose(d.specific_force[3], [0.0980665, -0.196133, -9.80665]) and d.rates[3, 0] == pytest.approx(0.01)
     assert "IMU SCALED_IMU" in d.source
@@ -322,3 +324,34 @@ def test_identify_connect_refusals(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["identify", "--connect", "udpin://0.0.0.0:14540", "--vehicle", "px4-sih-quadx", "--floor", "30",
                  "--ceiling", "20"]) == 2  # fmt: skip
     assert "floor" in capsys.readouterr().err
+
+
+def test_take_off_command_carries_home_altitude_plus_the_wanted_height() -> None:
+    from mission.runners.takeoff import takeoff_above_home
+
+    sent: list[dict[str, Any]] = []
+
+    class Direct:
+        result = 0
+
+        async def send_command(self, msg: Any) -> Any:
+            sent.append(json.loads(msg.fields_json))
+
+            class Ack:
+                fields_json = json.dumps({"result": Direct.result})
+
+            return Ack()
+
+    class V:
+        home: dict[str, Any] | None = {"altitude": 488_000}
+        target = (3, 1)
+        direct = Direct()
+
+    assert asyncio.run(takeoff_above_home(V(), 10.0)) is None  # type: ignore[arg-type]
+    f = sent[0]
+    assert f["command"] == 22 and f["param7"] == pytest.approx(498.0) and f["target_system"] == 3
+    assert f["param5"] is None and f["param6"] is None  # NaN on the wire: take off where it stands
+    Direct.result = 4
+    assert "refused (MAV_RESULT 4)" in str(asyncio.run(takeoff_above_home(V(), 10.0)))  # type: ignore[arg-type]
+    V.home = None
+    assert "no HOME_POSITION" in str(asyncio.run(takeoff_above_home(V(), 10.0, timeout_s=0.2)))  # type: ignore[arg-type]

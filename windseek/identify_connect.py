@@ -159,7 +159,7 @@ def run_connect(args: argparse.Namespace) -> int:
     summary: dict[str, Any] = {"vehicle": vehicle.name, "connect": args.connect, "output": None, "abort": abort,
                                "flight": res.report}  # fmt: skip
     if res.fitting is None:
-        say("no identification: the fitting manoeuvre was not flown to its end")
+        say("no identification: the fitting manoeuvre was not flown to its end, or its record was not usable")
     else:
         ident = identify(res.fitting, vehicle, res.validation)
         noise = accel_noise(res.fitting)

@@ -15,6 +15,7 @@ The flight, each step bounded in time:
    outputs), then offboard: the fitting manoeuvre and then the validation manoeuvre in the same flight, both
    from the point where the first started (the reference's path ends where it began), as attitude and
    collective-thrust setpoints at 50 Hz of vehicle time (:mod:`identify.fly.px4_setpoint`);
+   (the take-off altitude goes in the command: :func:`mission.runners.takeoff.takeoff_above_home`);
 4. hold, land, wait for the disarm; restore the failsafe parameters it changed.
 
 Safety (:mod:`identify.fly.px4_guard`) at every setpoint: the geofence box and altitude band, the tilt, the
@@ -37,14 +38,15 @@ from typing import Any
 import numpy as np
 
 from estimator.motor_output import OutputMap
-from identify.design import ManoeuvreSpec, design
+from identify.design import Manoeuvre, ManoeuvreSpec, design
 from identify.flight_data import FlightData
 from identify.fly.px4_guard import Guard, GuardLimits
 from identify.fly.px4_link import Params, link_loss_failsafe, request_streams
 from identify.fly.px4_record import MESSAGES, Recorder
-from identify.fly.px4_setpoint import AttitudeSetpoint, ManoeuvreLaw, fit_reference
+from identify.fly.px4_setpoint import AttitudeSetpoint, ManoeuvreLaw, ReferenceFit, fit_reference
 from mission.result import MissionError
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
+from mission.runners.takeoff import takeoff_above_home
 from mission.safety import Abort
 from mission.vehicle import CommandError, Wait
 from vehicle.params import VehicleParams
@@ -208,17 +210,14 @@ class _Flight:
         self.guard = Guard(cfg.limits, home)
         if st.armed or st.landed == LANDED_IN_AIR:
             raise MissionError("the vehicle is already armed or flying: start on the ground, disarmed")
-        try:  # MAVSDK's own set_takeoff_altitude was seen not to reach PX4 (it took off to 2.5 m): set, read back
-            await self.params.set("MIS_TAKEOFF_ALT", cfg.altitude_m)
-        except RuntimeError as e:
-            raise MissionError(f"refusing to fly: the take-off altitude: {e}") from None
+        self._design()  # before the take-off: the phase optimization takes seconds
         try:
             await v.arm()
-            self.say(f"armed at t = {st.t:.2f} s; taking off to {cfg.altitude_m:g} m")
-            await v.takeoff(cfg.altitude_m)
         except CommandError as e:
             raise MissionError(str(e)) from None
-        abort = await self._take_off(home)
+        self.say(f"armed at t = {st.t:.2f} s; taking off to {cfg.altitude_m:g} m")
+        why = await takeoff_above_home(v, cfg.altitude_m)
+        abort = Abort("command-failed", why) if why is not None else await self._take_off(home)
         if abort is None:
             abort = await self._manoeuvres(home)
         self.res.abort = abort
@@ -247,6 +246,18 @@ class _Flight:
         await v.wait(lambda: st.t - t0 >= cfg.settle_s, cfg.settle_s + 1.0)
         return self.guard.position(st.pos, False) if st.pos is not None else None
 
+    def _design(self) -> None:
+        """The manoeuvres (unit-scale multisines: thrust fraction and angles in rad) and their reference fits at
+        the take-off altitude."""
+        cfg = self.cfg
+        specs = [("fitting", cfg.fitting)] + ([("validation", cfg.validation)] if cfg.validation else [])
+        self.designs: list[tuple[str, Manoeuvre, ReferenceFit]] = []
+        for name, spec in specs:
+            m = design(spec, 1.0)
+            fit = fit_reference(m, cfg.limits.fence_m, cfg.altitude_m, cfg.limits.floor_m, cfg.limits.ceiling_m)
+            self.say(f"{name} manoeuvre: {spec.hover_s:g} s hover + {spec.duration_s:g} s; {fit.note}")
+            self.designs.append((name, m, fit))
+
     def _hover_thrust(self, t0: float, t1: float) -> float:
         """Mean collective thrust (normalized) of the motor outputs between t0 and t1 (PX4's thrust model)."""
         rows = [r for t, r in self.rec.snapshot(self._outputs_name()) if t0 <= t <= t1]
@@ -267,14 +278,7 @@ class _Flight:
         self.rep["hover_thrust"] = round(hover, 4)
         self.say(f"hover collective thrust {hover:.3f} (MPC_THR_HOVER {self.rep.get('mpc_thr_hover')})")
         start, yaw0 = st.pos.copy(), st.yaw
-        alt = float(home[2] - start[2])
-        specs = [("fitting", cfg.fitting)] + ([("validation", cfg.validation)] if cfg.validation else [])
-        laws = []
-        for name, spec in specs:
-            m = design(spec, 1.0)
-            fit = fit_reference(m, cfg.limits.fence_m, alt, cfg.limits.floor_m, cfg.limits.ceiling_m)
-            self.say(f"{name} manoeuvre: {spec.hover_s:g} s hover + {spec.duration_s:g} s; {fit.note}")
-            laws.append((name, ManoeuvreLaw(m, start, yaw0, hover, fit)))
+        laws = [(name, ManoeuvreLaw(m, start, yaw0, hover, fit)) for name, m, fit in self.designs]
         self.rep["manoeuvres"] = {}
         sp = laws[0][1].setpoint(0.0, st.pos, st.vel)
         try:

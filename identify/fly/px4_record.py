@@ -212,7 +212,7 @@ class Recorder:
 
 def _window(rows: list[tuple[float, np.ndarray]], t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
     """(times, values) of the rows between t0 and t1, sorted, duplicates of a time stamp dropped."""
-    sel = sorted((t, v) for t, v in rows if t0 <= t <= t1)
+    sel = sorted(((t, v) for t, v in rows if t0 <= t <= t1), key=lambda r: r[0])  # stable: a repeated stamp
     if not sel:
         return np.zeros(0), np.zeros((0, 1))
     t = np.array([s[0] for s in sel])

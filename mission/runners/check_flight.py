@@ -10,7 +10,6 @@ holds, then lands. Units m, m/s, s of vehicle time; NED (the autopilot's local f
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import math
 from collections.abc import Callable
@@ -21,6 +20,7 @@ import numpy as np
 
 from mission.result import MissionError
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
+from mission.runners.takeoff import takeoff_above_home
 from mission.vehicle import CommandError, Wait
 
 
@@ -79,18 +79,15 @@ async def fly_check(cfg: CheckFlightConfig) -> CheckFlightResult:
         if st.armed:
             raise MissionError("the vehicle is already armed: start the check flight on the ground")
         home = st.pos.copy()
-        try:  # set and read back: MAVSDK's set_takeoff_altitude alone was seen not to reach PX4 (2.5 m take-off)
-            await asyncio.wait_for(v.param.set_param_float("MIS_TAKEOFF_ALT", cfg.altitude_m), 10.0)
-            alt = await asyncio.wait_for(v.param.get_param_float("MIS_TAKEOFF_ALT"), 10.0)
-        except Exception as e:  # noqa: BLE001 - ParamError, a timeout
-            raise MissionError(f"MIS_TAKEOFF_ALT: {e}") from None
-        if abs(alt - cfg.altitude_m) > 0.01:
-            raise MissionError(f"MIS_TAKEOFF_ALT read back as {alt:g}, not {cfg.altitude_m:g}")
         try:
             await v.arm()
-            await v.takeoff(cfg.altitude_m)
         except CommandError as e:
             raise MissionError(str(e)) from None
+        why = await takeoff_above_home(v, cfg.altitude_m)
+        if why is not None:
+            res.abort = why
+            await _land(v, cfg)
+            return res
         up = await v.wait(lambda: st.pos is not None and st.mode == "AUTO.LOITER"
                           and home[2] - st.pos[2] > cfg.altitude_m - 0.7, cfg.takeoff_timeout_s)  # fmt: skip
         if up != Wait.OK:
