@@ -132,6 +132,20 @@ class Px4Sitl:
             self._log = None
         return None if p is None else p.returncode
 
+    def mavlink_stream(self, port: int, message: str, rate_hz: float, timeout_s: float = 10.0) -> str:
+        """PX4's ``mavlink stream -u PORT -s MESSAGE -r RATE`` on this instance, through the ``px4-mavlink``
+        client next to the binary (what an ``etc/extras.txt`` line does on a flight controller): a stream on the
+        UDP link of local port ``port`` for every client of it. Returns "" or the client's error, in one line."""
+        client = self.binary.parent / "px4-mavlink"
+        cmd = [str(client), "--instance", str(self.instance), "stream", "-u", str(port), "-s", message, "-r",
+               f"{rate_hz:g}"]  # fmt: skip
+        try:
+            r = subprocess.run(cmd, cwd=self.workdir, capture_output=True, text=True, timeout=timeout_s)
+        except (OSError, subprocess.TimeoutExpired) as e:
+            return f"{client.name}: {e}"
+        why = (r.stderr or r.stdout).strip()[-200:]
+        return "" if r.returncode == 0 else f"{client.name} exit {r.returncode}: {why}"
+
     def log_text(self) -> str:
         return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
 
