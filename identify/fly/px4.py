@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -317,12 +318,17 @@ class _Flight:
     async def _fly_one(self, law: ManoeuvreLaw, t0: float) -> Abort | None:
         cfg, v, st, guard = self.cfg, self.v, self.v.state, self.guard
         t_next = t0
+        wall_limit = 30.0 + 3.0 * law.m.total_s / max(cfg.speed_hint, 0.1)
+        wall_end = time.monotonic() + wall_limit
         while True:
             got = await v.next_tick(t_next)
             if got == Wait.LINK_LOST:
                 return Abort("link-lost", v.link_lost() or "link lost")
             if cfg.stop():
                 return Abort("interrupted", "stopped by the user")
+            if time.monotonic() > wall_end:
+                return Abort("stalled", f"the manoeuvre did not end within {wall_limit:.0f} s of wall time (the "
+                             f"autopilot's clock at {st.t - t0:.1f} of {law.m.total_s:g} s)")
             if got == Wait.TIMEOUT:
                 continue
             tau = st.t - t0

@@ -21,7 +21,7 @@ from mission.safety import Abort, SafetyLimits, Supervisor
 
 #: Abort causes of an identification flight (the JSON's ``abort.cause``).
 CAUSES = ("geofence", "floor", "attitude", "saturation", "link-lost", "offboard-lost", "command-failed",
-          "interrupted")  # fmt: skip
+          "interrupted", "stalled")  # fmt: skip
 
 
 @dataclass(frozen=True)
