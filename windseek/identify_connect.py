@@ -115,7 +115,12 @@ def run_connect(args: argparse.Namespace) -> int:
     if not args.vehicle:
         raise ValueError("--connect needs --vehicle BASE: the vehicle flown (mass, inertia, geometry, rotors)")
     vehicle = load_vehicle(args.vehicle)
-    band = tuple(float(x) for x in args.band.split(","))
+    try:
+        band = tuple(float(x) for x in args.band.split(","))
+    except ValueError:
+        band = ()
+    if len(band) != 2:
+        raise ValueError(f"--band {args.band!r}: expected LOW,HIGH in Hz")
     common: dict[str, Any] = dict(band_hz=band, amplitudes=_amplitudes(args.setpoint_amplitudes),
                                   speed_m_s=PX4_SPEED_M_S if args.speed is None else args.speed,
                                   climb_m_s=PX4_CLIMB_M_S if args.climb is None else args.climb)  # fmt: skip

@@ -212,6 +212,8 @@ class _Flight:
         if st.armed or st.landed == LANDED_IN_AIR:
             raise MissionError("the vehicle is already armed or flying: start on the ground, disarmed")
         self._design()  # before the take-off: the phase optimization takes seconds
+        if cfg.stop():
+            raise MissionError("stopped by the user before the take-off")
         try:
             await v.arm()
         except CommandError as e:
@@ -235,7 +237,9 @@ class _Flight:
         def up() -> bool:
             return st.pos is not None and st.mode == "AUTO.LOITER" and -(st.pos[2] - home[2]) > cfg.altitude_m - 0.7
 
-        got = await v.wait(up, cfg.takeoff_timeout_s)
+        got = await v.wait(lambda: up() or cfg.stop(), cfg.takeoff_timeout_s)
+        if cfg.stop():
+            return Abort("interrupted", "stopped by the user during the take-off")
         if got == Wait.LINK_LOST:
             return Abort("link-lost", v.link_lost() or "link lost during the take-off")
         if got != Wait.OK:
@@ -244,7 +248,9 @@ class _Flight:
         self.say(f"take-off complete at t = {st.t:.2f} s; holding {cfg.settle_s:g} s")
         self.rep["takeoff_t_s"] = round(st.t, 3)
         t0 = st.t
-        await v.wait(lambda: st.t - t0 >= cfg.settle_s, cfg.settle_s + 1.0)
+        await v.wait(lambda: st.t - t0 >= cfg.settle_s or cfg.stop(), cfg.settle_s + 1.0)
+        if cfg.stop():
+            return Abort("interrupted", "stopped by the user in the hover")
         return self.guard.position(st.pos, False) if st.pos is not None else None
 
     def _design(self) -> None:
