@@ -1,5 +1,6 @@
 """``windseek identify``: the paper's system identification of Eq. 46, for any vehicle (see identify/): flown
-in-process (SCENARIO), or from a flight log (``--log``, :mod:`windseek.identify_log`)."""
+in-process (SCENARIO), from a flight log (``--log``, :mod:`windseek.identify_log`), or flown on a PX4 through
+MAVLink (``--connect``, :mod:`windseek.identify_connect`)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from windseek import identify_log
-from windseek import identify_connect
+from windseek import identify_connect, identify_log
 from wire.jsonsafe import json_safe
 
 

@@ -6,7 +6,9 @@ hover, offboard attitude + thrust setpoints, hold, land), then the same estimati
 accelerometer's noise in ``[model.info] accel_noise_m_s2`` (the estimator sizes its accelerometer noise with
 it: :meth:`estimator.config.EstimatorConfig.for_vehicle`). An abort (geofence, floor, tilt, saturation,
 link, offboard, Ctrl-C) lands the vehicle, is said in one line and in the JSON (``abort``), and the exit
-code is 3; a completed fitting manoeuvre is still identified.
+code is 3; a completed fitting manoeuvre is still identified. As with ``--log``, terms the flight did not
+excite are screened out (:func:`identify.excitation.screen`) and a model that cannot sense the wind is not
+written without ``--partial`` (exit 1).
 """
 
 from __future__ import annotations
@@ -104,6 +106,7 @@ def accel_noise(data: Any) -> list[float]:
 def run_connect(args: argparse.Namespace) -> int:
     """The ``--connect`` route (see the module docstring); returns the exit code."""
     from identify.design import ManoeuvreSpec
+    from identify.excitation import screen, wind_blind
     from identify.fly.px4 import Px4FlightConfig, fly_px4
     from identify.fly.px4_guard import GuardLimits
     from identify.pipeline import identify
@@ -166,12 +169,18 @@ def run_connect(args: argparse.Namespace) -> int:
     if res.fitting is None:
         say("no identification: the fitting manoeuvre was not flown to its end, or its record was not usable")
     else:
-        ident = identify(res.fitting, vehicle, res.validation)
+        ident = screen(identify(res.fitting, vehicle, res.validation), vehicle)
+        blind = wind_blind(ident)
         noise = accel_noise(res.fitting)
         command = f"windseek identify --connect {args.connect} --vehicle {args.vehicle}"
         ident_v = identified_vehicle(vehicle, ident, command)
         ident_v.model_info["accel_noise_m_s2"] = noise
-        if args.output:
+        if blind:  # as --log writes a partial model (windseek.identify_log)
+            ident_v.model_info["warning"] = f"PARTIAL: this model cannot estimate the wind: {'; '.join(blind)}"
+            summary["wind_blind"] = blind
+            say(f"identify: the model cannot sense the wind: {'; '.join(blind)}" +
+                ("" if args.partial else " (not written; --partial writes it)"))  # fmt: skip
+        if args.output and (args.partial or not blind):
             header = (f"{vehicle.name}: Eq. 46 identified by `{command}`\n(flown on PX4 through MAVLink; the frame, "
                       "rotor and blade tables are the base file's, the [model] is the identification's)")
             Path(args.output).write_text(format_vehicle_file(ident_v, header))
@@ -191,4 +200,6 @@ def run_connect(args: argparse.Namespace) -> int:
     if res.abort is not None:
         say(f"identify: the flight was aborted: {res.abort.line()}")
         return 3
-    return 0 if res.fitting is not None else 3
+    if res.fitting is None:
+        return 3
+    return 1 if summary.get("wind_blind") and not args.partial else 0
