@@ -147,6 +147,8 @@ class _Flight:
     async def prepare(self) -> None:
         cfg, v, rec = self.cfg, self.v, self.rec
         assert v.target is not None
+        if v.state.armed or v.state.landed == LANDED_IN_AIR:  # before any parameter is touched
+            raise MissionError("the vehicle is already armed or flying: start on the ground, disarmed")
         wanted = {cfg.imu: cfg.imu_rate_hz, **STREAMS}
         if cfg.esc_component is None:
             wanted.pop("ESC_STATUS")
@@ -209,8 +211,6 @@ class _Flight:
         assert st.pos is not None
         home = st.pos.copy()
         self.guard = Guard(cfg.limits, home)
-        if st.armed or st.landed == LANDED_IN_AIR:
-            raise MissionError("the vehicle is already armed or flying: start on the ground, disarmed")
         self._design()  # before the take-off: the phase optimization takes seconds
         if cfg.stop():
             raise MissionError("stopped by the user before the take-off")
