@@ -43,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=float, default=None, help="peak of each horizontal velocity reference, m/s "
                    "(default 8; 3 with --connect)")
     p.add_argument("--climb", type=float, default=None, help="peak of the vertical velocity reference, m/s "
-                   "(default 2; 1 with --connect)")
+                   "(default 2)")
     p.add_argument("--plot", help="write measured vs modelled force and moment per axis (PNG)")
     p.add_argument("--json", action="store_true", help="print one JSON object: per axis R^2 %%, s^2, TIC and "
                    "NRMSE on the fitting and the validation manoeuvre")
