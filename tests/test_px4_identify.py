@@ -3,11 +3,11 @@
 30 s validation, PX4 at 4x real time), then ``windseek estimator`` (its own process, PX4's ground-station link)
 during a check flight with the identified file and with the paper's nasa-quad file.
 
-Figures measured here (benchmarks/px4_identify.py has the full-length ones): R^2 X 95-97, Y 91-93, Z 83-86,
-L 96-97, M 98-99, N 96-98 %; SIH's accelerometer noise 0.35 / 1.2 / 0.97 m/s^2 (x, y, z); with the identified
-model the horizontal wind in still air is 0.45-0.55 m/s RMS in hover (noise: the estimator's own 1-sigma is
-0.4-0.5 m/s; the mean is within 0.1 m/s of zero on SCALED_IMU); with nasa-quad the mismatch is named 4-5 s
-after the take-off (innovation check)."""
+Figures measured here (benchmarks/px4_identify.py has the full-length ones): R^2 X 97-98, Y 93-95, Z 81-87,
+L 96-97, M 98-99, N 97-98 %; SIH's accelerometer noise 0.34 / 1.18 / 0.97 m/s^2 (x, y, z); with the identified
+model the horizontal wind in still air is 0.5-0.55 m/s RMS in hover (noise: the estimator's own 1-sigma is
+0.38 m/s; the mean is within 0.2 m/s of zero on SCALED_IMU) and 0.6 m/s on the waypoints; with nasa-quad the
+mismatch is named 4-6 s after the take-off (innovation check)."""
 
 from __future__ import annotations
 
@@ -118,10 +118,10 @@ def test_estimator_on_sih_with_its_identified_model(identified: tuple[Path, dict
         mean = w[:, 1:3].mean(axis=0)
         sigma = float(np.median(np.sqrt(w[:, 4])))
         figures[phase] = (round(rms, 3), mean.round(3).tolist(), round(sigma, 3))
-    # SIH has no wind. In hover the estimate is noise-limited (SIH's accelerometer, 1.2 m/s^2 on y): its RMS about
-    # zero is near the estimator's own 1-sigma (0.35-0.45 m/s) and its mean near zero (no bias from the model or
-    # the IMU). On the waypoints the model's drag error adds a wind along the track (0.2-0.8 m/s on a leg: the
-    # noisy y axis may take a parasitic-drag term beside its linear drag), of both signs over the three legs.
+    # SIH has no wind. The estimate is noise-limited (SIH's accelerometer, 1.2 m/s^2 on y): in hover its RMS about
+    # zero is near the estimator's own 1-sigma (0.38 m/s) and its mean near zero (no bias from the model or the
+    # IMU); on the waypoints the drag model's error adds to it (a model whose y axis took a parasitic-drag term
+    # read 0.8 m/s along the eastward leg), of both signs over the three legs.
     hover, wps = figures["hover"], figures["waypoints"]
     assert hover[0] < 0.75 and hover[0] < 1.6 * hover[2] and math.hypot(*hover[1]) < 0.3, figures
     assert wps[0] < 1.0 and math.hypot(*wps[1]) < 0.4, figures
