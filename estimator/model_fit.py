@@ -1,4 +1,4 @@
-"""Does the model fit the vehicle flown? Two checks, one answer for every program that estimates the wind.
+"""Does the model fit the vehicle flown? Three checks, one answer for every program that estimates the wind.
 
 - :class:`~estimator.thrust_check.ThrustCheck`: the rotors' thrust at the measured rotor speeds against the
   vehicle's mass times its specific force, over the airspeeds the model was identified for (needs no
@@ -6,7 +6,6 @@
 - :class:`DomainCheck`: the filter's airspeed against the model's identified domain (a wrong model is
   explained by a wind no identification flight went near: PX4 SIH's 1 kg vehicle with the 2.8 kg model
   by a 20 m/s vertical wind).
-
 - :class:`InnovationCheck`: the running innovation test, the accelerometer's normalized innovation squared
   averaged over windows: a model whose errors no wind can explain (its structure, not its mass) keeps it
   far above its level in flight (0.4-0.6 with the identified model, the accelerometer noise set wide
@@ -17,7 +16,7 @@ rotor's thrust grows 36 % at 10 m/s and in a descent through the air): a vehicle
 model in 10 m/s of wind, or 40 % off in a 3 m/s wind with a 3-4 m/s vertical wind to explain it,
 passes; twice or half the mass does not.
 
-:class:`ModelFit` runs both on every IMU sample; the first confirmed verdict is ``mismatch`` (one line,
+:class:`ModelFit` runs the three on every IMU sample; the first confirmed verdict is ``mismatch`` (one line,
 latched), and until a verdict of fit (:attr:`ModelFit.judged`) nothing is published: the live estimator
 (``estimator.live``), the mission runner (through it) and the review say which model is in use and
 whether it fits. Units SI; FRD body; times in s of the autopilot's clock.
@@ -155,8 +154,8 @@ class ModelFit:
 
     @property
     def judged(self) -> bool:
-        """A verdict of fit: both checks judged ``confirm`` windows (the domain check only once the filter
-        converged) and nothing is wrong."""
+        """A verdict of fit: the thrust and the domain checks each judged ``confirm`` windows (the domain check
+        only once the filter converged) and none of the three objected."""
         need = self.thrust.config.confirm
         domain_done = self.domain.box is None or self.domain.windows >= need
         return self.mismatch is None and self.thrust.windows >= need and domain_done
