@@ -1,5 +1,10 @@
-"""Test-suite set-up: numba's kernel cache (before any kernel module is imported), the markers."""
+"""Test-suite set-up: one BLAS thread and numba's kernel cache (both before numpy and any kernel module
+are imported), the markers."""
 
-from windseek import numba_cache
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the windseek command sets it (windseek/cli.py)
+
+from windseek import numba_cache  # noqa: E402
 
 numba_cache.configure()

@@ -9,9 +9,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
-from windseek import numba_cache
+# One BLAS thread unless the user says otherwise, set before numpy loads: the identification's many
+# small least-squares fits ran 2-5x slower with OpenBLAS's threads on a 2-core machine
+# (benchmarks/README.md, "Identification"); nothing else here does large dense linear algebra.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from windseek import numba_cache  # noqa: E402
 
 #: Subcommand modules, in the order shown by ``windseek --help``.
 COMMANDS = [
