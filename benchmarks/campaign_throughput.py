@@ -39,7 +39,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from estimator.ukf import PRESETS, EstimatorConfig, WindEstimator

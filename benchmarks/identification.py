@@ -18,7 +18,7 @@ import sys
 import time
 from dataclasses import replace
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from identify.design import ManoeuvreSpec, design

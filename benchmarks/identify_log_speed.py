@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from windseek import numba_cache  # noqa: E402
+from toolchain import numba_cache  # noqa: E402
 
 numba_cache.configure()
 from flight_logs import write_ulog  # noqa: E402

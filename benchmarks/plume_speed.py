@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from sitl.world.chem_sensor import ChemSensorConfig

@@ -39,7 +39,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
-from windseek import numba_cache  # noqa: E402 - before any kernel module
+from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
 from mission.runners.check_flight import CheckFlightConfig, CheckFlightResult, fly_check  # noqa: E402

@@ -42,7 +42,7 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
-from windseek import numba_cache  # noqa: E402 - before any kernel module
+from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
 from sitl.hil.px4_params import px4_env  # noqa: E402

@@ -36,7 +36,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
-from windseek import numba_cache  # noqa: E402 - before any kernel module
+from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
 from sitl.hil.px4_process import Px4Sitl, free_instance, ports, px4_binary  # noqa: E402

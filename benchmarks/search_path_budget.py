@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dev_set
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from mission.evaluate import run_batch, summarize

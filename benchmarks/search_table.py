@@ -23,7 +23,7 @@ import json
 import time
 from pathlib import Path
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from mission.evaluate import run_batch, summarize

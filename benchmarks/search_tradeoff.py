@@ -18,7 +18,7 @@ from pathlib import Path
 
 import dev_set
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from mission.evaluate import run_batch, summarize

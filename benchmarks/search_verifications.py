@@ -18,7 +18,7 @@ from __future__ import annotations
 import dev_set
 import numpy as np
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from mission.evaluate import run_batch

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import shapely
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from estimator.metrics import Accuracy, accuracy, moving_average  # noqa: E402

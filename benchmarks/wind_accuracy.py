@@ -43,7 +43,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from windseek import numba_cache  # before any kernel module
+from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
 from estimator.metrics import accuracy

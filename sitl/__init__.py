@@ -14,5 +14,5 @@ Conventions used everywhere in this project:
 Layout: ``world/`` (what a vehicle experiences: dynamics, wind, plume, sensors), ``autopilot/``
 (the built-in PX4-like autopilot), ``link/`` (the MAVLink endpoint), ``scenario.py``,
 ``simulation.py`` (world + built-in autopilot in lockstep). Numba caches its kernels where
-:func:`windseek.numba_cache.configure` says (the entry points call it).
+:func:`toolchain.numba_cache.configure` says (the entry points call it).
 """

@@ -5,6 +5,6 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the windseek command sets it (windseek/cli.py)
 
-from windseek import numba_cache  # noqa: E402
+from toolchain import numba_cache  # noqa: E402
 
 numba_cache.configure()

@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("sitl", "vehicle", "wire", "estimator", "mission", "recording", "review", "windseek", "identify")
+PACKAGES = ("sitl", "vehicle", "wire", "estimator", "mission", "recording", "review", "windseek", "identify",
+            "toolchain")
 GENERATED = {"wire/dialect/windseek.py"}
 MAX_LINES = 450
 
@@ -31,6 +32,10 @@ FORBIDDEN = [
     ("recording", "sitl"),  # the recorder listens; it needs no simulator to run
     ("mission.strategies", "sitl"),  # strategies see observations, never the simulator
     ("mission.strategies", "mission.runners"),
+    ("mission", "windseek"),  # library layers never need the command line
+    ("sitl", "windseek"),
+    ("estimator", "windseek"),
+    ("toolchain", "sitl"),  # the numba cache set-up sits below every layer
     ("identify", "sitl"),  # the identification runs on any flight's data; only its in-process adapter flies
 ]
 #: (importer prefix, imported prefix) -> importers under these prefixes may: the adapters that fill the

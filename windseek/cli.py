@@ -17,7 +17,7 @@ import sys
 # (benchmarks/README.md, "Identification"); nothing else here does large dense linear algebra.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from windseek import numba_cache  # noqa: E402
+from toolchain import numba_cache  # noqa: E402
 
 #: Subcommand modules, in the order shown by ``windseek --help``.
 COMMANDS = [

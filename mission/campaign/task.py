@@ -1,7 +1,7 @@
 """One mission of a campaign: its configuration and its stable key.
 
 Kept free of simulator imports: a Dask worker unpickles tasks before anything else, and the
-compiled-kernel cache must be configured before a kernel module is imported (``windseek.numba_cache``).
+compiled-kernel cache must be configured before a kernel module is imported (``toolchain.numba_cache``).
 
 The key names what the campaign asked for: the scenario as written in the campaign file, the
 scenario parameters, the strategy and its knobs (and base strategy file), the wind source, the

@@ -1,7 +1,7 @@
 """The worker side of a campaign: one mission -> one results row, and the once-per-worker set-up.
 
 Importing this module points the JIT compiler at the project's kernel cache
-(:func:`windseek.numba_cache.configure`) before any kernel module is imported, so it is safe as a
+(:func:`toolchain.numba_cache.configure`) before any kernel module is imported, so it is safe as a
 Dask preload (``dask worker ... --preload mission.campaign.worker``): :func:`dask_setup` then
 loads and runs every kernel once (:func:`warm_up`) before the worker takes tasks. A client also
 registers :class:`WarmUpPlugin`, which does the same on every worker of any cluster, including
@@ -25,7 +25,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from mission.campaign.rows import ok_row, windseek_version
 from mission.campaign.task import Task
-from windseek import numba_cache
+from toolchain import numba_cache
 
 numba_cache.configure()
 _warm = False
