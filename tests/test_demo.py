@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from link_support import free_port, running, udp_to, wait_until
 
-from sitl.link.wire import Forwarder
+from sitl.link.forwarding import Forwarder
 from wire.dialect import mavlink as mav
 
 pytestmark = pytest.mark.e2e

@@ -60,8 +60,8 @@ def test_the_sitl_records_the_urban_wind_slice_at_the_missions_search_altitude(
     """The SITL knows only the scenario's take-off altitude (5 m in paper-s4); the demo tells it the
     mission's search altitude, and the recorded wind field's slice is drawn there."""
     from recording.read import RrdLog
+    from recording.sitl_link import LinkRecorder
     from sitl.link.runner import SitlLink
-    from sitl.link.wire import WireRecorder
     from sitl.scenario import load_scenario
     from sitl.simulation import Simulation
     from windseek import cmd_sitl
@@ -77,6 +77,6 @@ def test_the_sitl_records_the_urban_wind_slice_at_the_missions_search_altitude(
         ap.parse_args(["sitl", "paper-s4", "--rrd-altitude", "-1"])  # one line, not a traceback
     path = tmp_path / "s.rrd"
     link = SitlLink(Simulation(load_scenario("paper-s4"), seed=1, autostart_route=False), [])
-    WireRecorder(link, path, strategy=strategy, field_altitude_m=ns.rrd_altitude).close()
+    LinkRecorder(link, path, strategy=strategy, field_altitude_m=ns.rrd_altitude).close()
     _, labels = RrdLog(path).column("map/wind_field/colorbar/unit", "Points2D:labels")
     assert list(labels[-1]) == [f"m/s at {alt} m"]

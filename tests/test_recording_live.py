@@ -1,4 +1,4 @@
-"""The recording of a live run: ``windseek sitl --rrd`` (:class:`sitl.link.wire.WireRecorder`) and the
+"""The recording of a live run: ``windseek sitl --rrd`` (:class:`recording.sitl_link.LinkRecorder`) and the
 demo's rewrite with its summary (:mod:`recording.finalize`).
 
 A real simulation is flown through the built-in autopilot's commands (arm, take off, offboard,
@@ -18,9 +18,9 @@ import pytest
 
 from recording.finalize import add_demo_result
 from recording.read import RrdLog
+from recording.sitl_link import LinkRecorder
 from sitl.autopilot.modes import Mode
 from sitl.link.runner import SitlLink
-from sitl.link.wire import WireRecorder
 from sitl.scenario import load_scenario
 from sitl.simulation import Simulation
 from wire.dialect import mavlink as mav
@@ -41,7 +41,7 @@ class _Flight:
     def __init__(self, path: Path) -> None:
         self.sim = Simulation(load_scenario("open-field"), seed=1002, autostart_route=False)
         self.link = SitlLink(self.sim, [])
-        self.rec = WireRecorder(self.link, path, strategy="surge-cast",
+        self.rec = LinkRecorder(self.link, path, strategy="surge-cast",
                                 geofence_ned=([-150.0, -150.0, -30.0], [150.0, 150.0, 0.0]))  # fmt: skip
         self.latest: tuple[float, np.ndarray] = (0.0, np.zeros(3))
         self.sim.step_hooks.append(lambda s: setattr(self, "latest", (s.t, s.wind_at_vehicle.copy())))

@@ -92,8 +92,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(default: $WINDSEEK_SIGNING_KEY if set); unsigned or wrongly signed frames are dropped")
     p.add_argument("--allow-sim-params", action="store_true",
                    help="let MAVLink PARAM_SET change the simulation knobs SIM_* (refused by default)")
-    # ---- wire attachments (sitl.link.wire): logs, forwarding, truth summary
-    g = p.add_argument_group("logs, forwarding and truth (see sitl/link/wire.py)")
+    # ---- attachments to the link: tlog, forwarding, exit summary (sitl.link), recording (recording.sitl_link)
+    g = p.add_argument_group("logs, forwarding and truth (sitl/link/, recording/sitl_link.py)")
     g.add_argument("--tlog", metavar="PATH", help="write every MAVLink frame sent and received to a .tlog "
                    "(8-byte big-endian wall-clock UNIX time in us + frame)")
     g.add_argument("--rrd", metavar="PATH", help="write a Rerun recording: the simulation's truth plus the "
@@ -165,7 +165,10 @@ def build(args: argparse.Namespace) -> SitlLink:
 
 def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
     """The optional --tlog / --forward / --rrd / --exit-summary attachments; returns those to close."""
-    from sitl.link.wire import Forwarder, TlogWriter, TruthSummary, WireRecorder
+    from recording.sitl_link import LinkRecorder
+    from sitl.link.forwarding import Forwarder
+    from sitl.link.tlog import TlogWriter
+    from sitl.link.truth_summary import TruthSummary
 
     out: list = []
     if getattr(args, "tlog", None):
@@ -173,7 +176,7 @@ def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
     if getattr(args, "forward", False):
         Forwarder(link)
     if getattr(args, "rrd", None):
-        out.append(WireRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=args.geofence,
+        out.append(LinkRecorder(link, args.rrd, strategy=args.rrd_strategy, geofence_ned=args.geofence,
                                 field_altitude_m=getattr(args, "rrd_altitude", None)))
     if getattr(args, "exit_summary", None):
         out.append(TruthSummary(link, args.exit_summary))

@@ -109,7 +109,7 @@ def run_px4(args: argparse.Namespace) -> int:
 def _tlog(runner: HilRunner, path: str | None) -> Any:
     if not path:
         return None
-    from sitl.link.wire import TlogWriter
+    from sitl.link.tlog import TlogWriter
 
     w = TlogWriter(path)
     runner.link.tap = lambda frame, sent: w.write(frame)
