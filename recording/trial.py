@@ -16,14 +16,13 @@ lockstep vehicle and the strategy exist, and hands it the trial's result at the 
 
 From the command line (a quick look at one trial)::
 
-    python -m recording.trial open-field surge-cast --seed 1000 -o logs/trial.rrd
+    python -m mission.runners.record_trial open-field surge-cast --seed 1000 -o logs/trial.rrd
 
 Times are simulation seconds (the vehicle's clock; the trial arms at t = 0).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
@@ -177,28 +176,4 @@ class TrialRecorder:
         self.meter(rec.close, lambda: {"sim_s": round(self.sim.t, 3), **self.meter.report(rec)})
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m recording.trial", description="Fly one in-process trial and "
-                                 "record it to a .rrd (open it with: rerun FILE.rrd)")  # fmt: skip
-    ap.add_argument("scenario")
-    ap.add_argument("strategy")
-    ap.add_argument("--seed", type=int, default=None)
-    ap.add_argument("--wind", default="estimated", choices=sorted(WIND_SOURCES))
-    ap.add_argument("--time-limit", type=float, default=None, metavar="S")
-    ap.add_argument("-o", "--out", default=None, help="output .rrd (default logs/trial-<scenario>-<strategy>.rrd)")
-    a = ap.parse_args(argv)
-    from mission.runners.inprocess import run_trial
-
-    out = Path(a.out or f"logs/trial-{Path(a.scenario).stem}-{a.strategy}.rrd")
-    r = run_trial(a.scenario, a.strategy, wind=a.wind, seed=a.seed, time_limit_s=a.time_limit,
-                  recorder=TrialRecorder(out))  # fmt: skip
-    print(f"{r.scenario} / {r.strategy} / seed {r.seed}: {'found' if r.success else 'not found'} "
-          f"({r.cause or 'declared'}), error {r.error_m:.1f} m, {r.wall_s:.1f} s wall; wrote {out}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
-
-
-__all__ = ["TrialRecorder", "WIND_SOURCES", "main", "record_posterior"]
+__all__ = ["TrialRecorder", "WIND_SOURCES", "record_posterior"]

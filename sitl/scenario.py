@@ -32,6 +32,7 @@ from sitl.world.sensors import (
     SensorSuiteConfig,
     TemperatureConfig,
 )
+from sitl.world.spec import Start, WorldSpec
 from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import KaimalTurbulence, SteadyWind
 
@@ -52,13 +53,6 @@ class Route:
     cruise_speed_m_s: float = 3.0
     waypoints: tuple[Waypoint, ...] = ()
     land: bool = False
-
-
-@dataclass(frozen=True)
-class Start:
-    position_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    yaw_deg: float = 0.0
-    airborne: bool = False
 
 
 @dataclass(frozen=True)
@@ -85,6 +79,14 @@ class Scenario:
 
     def with_seed(self, seed: int) -> Scenario:
         return replace(self, seed=int(seed))
+
+    def world_spec(self) -> WorldSpec:
+        """What the world alone takes (:class:`~sitl.world.spec.WorldSpec`): no gains, flight
+        settings, route or duration."""
+        return WorldSpec(name=self.name, seed=self.seed, vehicle=self.vehicle, physics_rate_hz=self.physics_rate_hz,
+                         mode_rate_hz=self.mode_rate_hz, wind=self.wind, turbulence=self.turbulence,
+                         wind_model=self.wind_model, wind_options=self.wind_options, start=self.start,
+                         sensors=self.sensors, plume=self.plume, urban=self.urban)  # fmt: skip
 
     def with_duration(self, duration_s: float) -> Scenario:
         number("duration_s", duration_s, 0.01, 86400.0)

@@ -73,7 +73,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario, seed: int | None = None, vehicle: VehicleParams | None = None,
                  autostart_route: bool = True, record_truth: bool = False) -> None:  # fmt: skip
-        self.world = World(scenario, seed=seed, vehicle=vehicle, record_truth=record_truth)
+        self.world = World(scenario.world_spec(), seed=seed, vehicle=vehicle, record_truth=record_truth)
         self.scenario = scenario
         self.seed = self.world.seed
         self.vehicle = self.world.vehicle

@@ -48,7 +48,7 @@ class OutsideHover:
 
 
 def test_an_outside_controller_hovers_the_world() -> None:
-    world = World(parse_scenario(AIRBORNE), seed=4)
+    world = World(parse_scenario(AIRBORNE).world_spec(), seed=4)
     cmd = RotorCommand()
     ctrl = OutsideHover(world, np.array([0.0, 0.0, -3.0]))
     heights, offsets, tilts = [], [], []
@@ -75,7 +75,7 @@ def test_rotor_commands_replayed_from_outside_give_the_builtin_flight_bit_for_bi
     sim.fc.reposition(np.array([4.0, -3.0, -6.0]))
     sim.run(6.0)
     truth = sim.truth_array()
-    world = World(scenario, seed=2)
+    world = World(scenario.world_spec(), seed=2)
     world.phys.x[:] = sim_start_state(scenario)
     cmd = RotorCommand(world.n_rotors)
     for row in truth:

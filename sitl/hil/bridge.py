@@ -72,9 +72,9 @@ class HilBridge:
     def __init__(self, scenario: Scenario, seed: int | None = None, say: Callable[[str], None] = print) -> None:
         sc = ground_start(scenario, say)
         self.scenario = sc
-        self.world = World(sc, seed=seed)
+        self.world = World(sc.world_spec(), seed=seed)
         self.motors = MotorMap(self.world.vehicle)
-        self.guard = ControlGuard(self.world, self.motors, say)
+        self.guard = ControlGuard(self.world, self.motors, say, sc.flight, sc.gains)
         self.imu_div = self.world.phys.imu_div
         self.imu_period_s = self.imu_div * self.world.dt
         self.unix0_us = int(time.time() * 1e6)  # HIL_GPS carries UNIX time (not part of the physics)

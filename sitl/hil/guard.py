@@ -34,6 +34,8 @@ from typing import cast
 import numpy as np
 
 from sitl.autopilot.builtin import BuiltinAutopilot
+from sitl.autopilot.controller import ControllerGains
+from sitl.autopilot.flight_modes import FlightConfig
 from sitl.hil.motors import MotorMap
 from sitl.world.world import Pilot, RotorCommand, World
 
@@ -46,11 +48,15 @@ class ControlGuard:
 
     Args:
         world: the world flown; motors: the PX4 output map; say: one-line messages.
+        flight, gains: the safety pilot's flight settings (its land speed) and controller gains
+            (the scenario's; the world does not carry them).
         hold_s: simulation seconds to hold the last valid command through invalid outputs.
     """
 
-    def __init__(self, world: World, motors: MotorMap, say: Callable[[str], None], hold_s: float = HOLD_S) -> None:
+    def __init__(self, world: World, motors: MotorMap, say: Callable[[str], None], flight: FlightConfig,
+                 gains: ControllerGains, hold_s: float = HOLD_S) -> None:  # fmt: skip
         self.world = world
+        self.flight, self.gains = flight, gains
         self.motors = motors
         self.say = say
         self.hold_s = float(hold_s)
@@ -71,7 +77,7 @@ class ControlGuard:
         ph = w.phys
         scratch = SimpleNamespace(tick=0, wind_kernel=w.wind_kernel, phys=dataclasses.replace(
             ph, x=ph.x.copy(), flags=ph.flags.copy(), rows=ph.rows.copy(), fb=ph.fb.copy()))  # fmt: skip
-        BuiltinAutopilot(w.scenario.flight, w.scenario.gains, np.zeros(3), 0.0).advance(cast(World, scratch), 1)
+        BuiltinAutopilot(self.flight, self.gains, np.zeros(3), 0.0).advance(cast(World, scratch), 1)
 
     @property
     def pilot(self) -> Pilot:
@@ -129,15 +135,14 @@ class ControlGuard:
 
     def _engage(self, why: str) -> None:
         w = self.world
-        sc = w.scenario
         q = w.quaternion
         yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
         pos = w.position
-        ap = BuiltinAutopilot(sc.flight, sc.gains, np.array([pos[0], pos[1], 0.0]), yaw)
+        ap = BuiltinAutopilot(self.flight, self.gains, np.array([pos[0], pos[1], 0.0]), yaw)
         ap.fc.start_in_air(pos)
         ap.fc.land()
         ap.fc.update(w.t, w.phys.x, w.on_ground, w.crashed, w.slow_div * w.dt)
         self.safety = ap
         self.counters["safety_landings"] += 1
         self.say(f"{why}: windseek's built-in controller lands the vehicle from {-pos[2]:.1f} m at t = {w.t:.2f} s "
-                 f"(controlled descent at {sc.flight.land_speed_m_s:g} m/s)")  # fmt: skip
+                 f"(controlled descent at {self.flight.land_speed_m_s:g} m/s)")  # fmt: skip

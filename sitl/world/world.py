@@ -30,7 +30,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sitl.scenario import Scenario
 from sitl.world.dynamics import IX_INFLOW, IX_ROTORS, N_STATE
 from sitl.world.kernel import (
     FLAG_COLLISIONS,
@@ -47,6 +46,7 @@ from sitl.world.kernel import (
 )
 from sitl.world.plume.part import CHEM_OUTPUT, PlumePart
 from sitl.world.sensors import BaroSample, GnssSample, MagSample, SensorSuite
+from sitl.world.spec import WorldSpec
 from sitl.world.wind.kernel import WindKernel
 from sitl.world.wind.model import WindModel, make_wind
 from vehicle.frames import euler_to_quat, quat_to_dcm, tilt_angle
@@ -139,18 +139,21 @@ class RotorCommand:
 
 
 class World:
-    """The simulated world of a :class:`~sitl.scenario.Scenario` (see the module docstring).
+    """The simulated world of a :class:`~sitl.world.spec.WorldSpec` (see the module docstring).
 
     Args:
-        scenario: wind, turbulence, start, sensors, plume.
-        seed: overrides ``scenario.seed``; every random process is spawned from it.
+        spec: vehicle, rates, wind, turbulence, start, sensors, plume, buildings
+            (:meth:`sitl.scenario.Scenario.world_spec` makes one from a scenario).
+        seed: overrides ``spec.seed``; every random process is spawned from it.
         vehicle: overrides the scenario's vehicle file.
         record_truth: keep every truth row (IMU rate) in memory (:meth:`truth_array`).
     """
 
-    def __init__(self, scenario: Scenario, seed: int | None = None, vehicle: VehicleParams | None = None,
+    def __init__(self, spec: WorldSpec, seed: int | None = None, vehicle: VehicleParams | None = None,
                  record_truth: bool = False) -> None:  # fmt: skip
-        self.scenario = scenario
+        if not isinstance(spec, WorldSpec):  # a Scenario passed whole: the world takes only its own spec
+            raise TypeError(f"World takes a WorldSpec (Scenario.world_spec()), got {type(spec).__name__}")
+        self.spec = scenario = spec
         self.seed = scenario.seed if seed is None else int(seed)
         s_wind, s_sensors, s_extra = np.random.SeedSequence(self.seed).spawn(3)
         self.vehicle = vehicle or load_vehicle(scenario.vehicle)
@@ -372,7 +375,7 @@ class World:
         return np.concatenate(self.truth_log)
 
 
-def _obstacles(scenario: Scenario) -> Obstacles:
+def _obstacles(scenario: WorldSpec) -> Obstacles:
     """The scenario's buildings as prisms for the physics loop and the plume (none: empty arrays)."""
     if scenario.urban is None or not scenario.urban.buildings:
         return NO_OBSTACLES
