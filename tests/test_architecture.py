@@ -196,3 +196,16 @@ def test_no_project_file_over_the_size_limit() -> None:
     long = {p.relative_to(ROOT).as_posix(): n for p in _sources().values()
             if (n := len(p.read_text().splitlines())) > MAX_LINES}  # fmt: skip
     assert not long, f"files over {MAX_LINES} lines: {long}"
+
+
+def test_importing_the_world_loads_no_autopilot_or_scenario_parser() -> None:
+    """At run time too: a fresh interpreter that imports the world has no autopilot, link or scenario
+    module loaded (the world takes a WorldSpec, not the Scenario that carries the autopilot's gains)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, sitl.world.world; print(sorted(m for m in sys.modules "
+            "if m.startswith(('sitl.autopilot', 'sitl.scenario', 'sitl.link', 'mission', 'estimator'))))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
