@@ -58,7 +58,6 @@ from recording.style import (
     C_TRUTH,
     PHASE_COLORS,
     PHASES,
-    TIMELINE,
     VecLike,
 )
 from recording.summary import RunSummary
@@ -82,7 +81,9 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         scenario, strategy, seed: recording name and properties.
         blueprint: send the layout (:mod:`recording.layout`) at close, fitted to the run.
         live_layout: also send a starting layout now, for a viewer that watches the run as it is
-            recorded (about 5 ms of CPU; a recording that is only read after the run skips it).
+            recorded (about 5 ms of CPU; a recording that is only read after the run skips it). Without
+            it the static data (styles, map furniture) is also kept until close and sent once
+            (``RecorderBase(defer_static=True)``: fewer chunks, a smaller file).
         series_flush_s: vehicle seconds between two sends of the buffered rows.
         trail_min_step_m: the path gets a segment whenever the vehicle moved this far [m].
         c_range_mg_m3: (low, high) of the concentration colour scale [mg/m^3]; the chemical plot's
@@ -99,7 +100,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
                  series_flush_s: float = 4.0, trail_min_step_m: float = 0.5,
                  c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
                  arrow_scale_s: float = 2.0, recording_id: str | None = None) -> None:  # fmt: skip
-        super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id)
+        super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id,
+                         defer_static=not live_layout)  # fmt: skip
         self.trail_min_step_m = float(trail_min_step_m)
         self.c_range_mg_m3 = (float(c_range_mg_m3[0]), float(c_range_mg_m3[1]))
         self.arrow_scale_s = float(arrow_scale_s)
@@ -287,8 +289,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
                 continue
             t = np.repeat(ts, 3)
             v = np.tile([-MARKER_SPAN, MARKER_SPAN, math.nan], len(ts))  # NaN: a gap between two markers
-            self.rec.send_columns(f"markers/{kind}", indexes=[rr.TimeColumn(TIMELINE, duration=t)],
-                                  columns=rr.Scalars.columns(scalars=v))  # fmt: skip
+            self.send_columns(f"markers/{kind}", t, rr.Scalars.columns(scalars=v))
             sent = True
         return sent
 
@@ -341,6 +342,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
                                        seed=self.seed)  # fmt: skip
         self._write_summary()
         self.property("layout", json=lay.to_json())
+        self._send_deferred_static()
         if self.blueprint:
             self.rec.send_blueprint(make_blueprint(lay), make_active=True, make_default=True)
         if cost is not None:

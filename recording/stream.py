@@ -27,6 +27,10 @@ from recording.style import TIMELINE
 VALUES_KEEP = 20000
 
 
+#: Archetypes that only style a time series: sent (deferred) only for a series that got rows.
+SERIES_STYLES = frozenset({"SeriesLines", "SeriesPoints", "StateConfiguration"})
+
+
 class ColumnBuffer:
     """Rows of one entity waiting to be sent as columns: times [s] and per-field values.
 
@@ -136,19 +140,28 @@ class RecorderBase:
         series_flush_s: vehicle seconds between two sends of the buffered rows (a live viewer lags
             by that much).
         recording_id: reuse an id (rewriting a finished recording); default: a fresh one.
+        defer_static: keep the static data (styles, map furniture, the scene) until :meth:`_close_stream`
+            and send it then, one chunk per entity, only the last of each kind (what the viewer shows
+            anyway), and no series style for a series that never got a row. For a recording nobody
+            watches live (a batch trial): every chunk costs the file ~3 kB of schema and index,
+            whatever it holds.
 
     Not thread-safe: one stream with its own current time; use it from one thread or one asyncio loop.
     """
 
     def __init__(self, path: Path | str, application_id: str = "windseek", *, series_flush_s: float = 0.5,
-                 recording_id: str | None = None) -> None:  # fmt: skip
+                 recording_id: str | None = None, defer_static: bool = False) -> None:  # fmt: skip
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.series_flush_s = float(series_flush_s)
         # A fresh id per instance: the default id is shared process-wide, which would merge two
         # recorders (or two test runs) into one recording.
         before = _task_ids()
-        self.rec = rr.RecordingStream(application_id, recording_id=recording_id or uuid.uuid4())
+        # Not watched live: rows wait in the batcher until a flush (the series' own, or close), so each
+        # entity's logged rows become one chunk rather than one per 8 ms of wall time.
+        batcher = rr.ChunkBatcherConfig.NEVER() if defer_static else None
+        self.rec = rr.RecordingStream(application_id, recording_id=recording_id or uuid.uuid4(),
+                                      batcher_config=batcher)  # fmt: skip
         # Wall-clock "log_time" means nothing for a lockstep simulation and costs per call.
         self.rec.set_log_time_enabled(False)
         self.rec.save(self.path)
@@ -159,6 +172,9 @@ class RecorderBase:
         self._series: dict[str, ColumnBuffer] = {}
         self._values: dict[str, SeriesValues] = {}
         self._t_flush = -math.inf
+        self.defer_static = bool(defer_static)
+        self._static: dict[str, dict[str, Any]] = {}  # entity -> archetype name -> the latest one
+        self._temporal: set[str] = set()  # entities with rows on the time line
 
     # ------------------------------------------------------------------ time
     def _seen(self, t: float) -> None:
@@ -181,10 +197,31 @@ class RecorderBase:
     def log_at(self, t: float, entity: str, *data: Any) -> None:
         """``log`` one or more archetypes at vehicle time ``t`` [s]."""
         self._time(t)
+        self._temporal.add(entity)
         self.rec.log(entity, *data)
 
     def log_static(self, entity: str, *data: Any) -> None:
-        self.rec.log(entity, *data, static=True)
+        """Static data (no time): sent now, or kept until close with ``defer_static`` (a later archetype
+        of the same kind on the same entity replaces the earlier, as a static log does)."""
+        if not self.defer_static:
+            self.rec.log(entity, *data, static=True)
+            return
+        slot = self._static.setdefault(entity, {})
+        for d in data:
+            slot[type(d).__name__] = d
+
+    def send_columns(self, entity: str, t: np.ndarray, columns: Any) -> None:
+        """Rows of ``entity`` at vehicle times ``t`` [s] (one chunk)."""
+        self._temporal.add(entity)
+        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=columns)
+
+    def _send_deferred_static(self) -> None:
+        for entity, slot in self._static.items():
+            kinds = list(slot)
+            if entity not in self._temporal and all(k in SERIES_STYLES for k in kinds):
+                continue  # the style of a series that never got a row draws nothing
+            self.rec.log(entity, *slot.values(), static=True)
+        self._static.clear()
 
     # ------------------------------------------------------------------ buffered rows
     def _push(self, entity: str, t: float, value: float | None) -> None:
@@ -246,7 +283,7 @@ class RecorderBase:
             else:
                 flat = {name: v.reshape(-1, *v.shape[2:]) for name, v in cols.items()}
                 columns = buf.archetype.columns(**flat).partition([buf.width] * len(t))
-            self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=t)], columns=columns)
+            self.send_columns(entity, t, columns)
             buf.clear()
 
     def values(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
@@ -271,9 +308,10 @@ class RecorderBase:
 
     def _close_stream(self) -> None:
         self.flush_series()
+        self._send_deferred_static()
         self.rec.flush()
         self.rec.disconnect()
         self.closed = True
 
 
-__all__ = ["VALUES_KEEP", "ColumnBuffer", "CpuMeter", "RecorderBase", "SeriesValues"]
+__all__ = ["SERIES_STYLES", "VALUES_KEEP", "ColumnBuffer", "CpuMeter", "RecorderBase", "SeriesValues"]
