@@ -19,7 +19,7 @@ demo: venv
 	$(BIN)/windseek demo
 
 test: venv
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=15
 
 # The fast suite alone: everything but the end-to-end tests (processes, MAVSDK, MAVProxy).
 test-fast: venv
