@@ -56,7 +56,9 @@ def test_peripheral_talks_as_px4s_component_158_and_scores_what_comes_back() -> 
         for m in declaration_messages(t_sent, [18.0, 1.0, -2.0], 0.9):
             payload.sendto(m.pack(est), peer)
         payload.sendto(b"\xfd\x09garbage", peer)  # malformed: counted, dropped
-        wait_for(lambda: b.truth.n == 3 and b.truth.declaration is not None, what="the scores")
+        # (the garbage is read after the scores: wait for it too, or its count races the summary)
+        wait_for(lambda: b.truth.n == 3 and b.truth.declaration is not None and periph.counters["rx_bad"] >= 1,
+                 what="the scores and the malformed datagram counted")  # fmt: skip
         t_end = b.world.t
         px4.close()
     payload.close()
