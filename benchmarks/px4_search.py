@@ -130,7 +130,7 @@ def identify(binary: Path, path: Path, args: argparse.Namespace, out: Path) -> d
                 w0 = time.monotonic()
                 r = subprocess.run(_cli("identify", "--connect", f"udpout://127.0.0.1:{p['api']}", "--vehicle",
                                         args.identify_base, "-o", str(path), "--esc-component", "158", "--esc-order",
-                                        "rotors", "--imu", "scaled", "--speed-hint", k, "--speed",
+                                        args.identify_esc_order, "--imu", "scaled", "--speed-hint", k, "--speed",
                                         str(args.identify_ref_speed), "--duration", str(args.identify_duration),
                                         "--validation-duration", str(args.identify_duration / 2), "--plot",
                                         str(out / "fit.png"), "--json"),
@@ -211,6 +211,9 @@ def main() -> int:
     ap.add_argument("--identify-ref-speed", type=float, default=8.0, help="peak of the horizontal velocity reference "
                     "in the identification, m/s (default 8: the searches fly at up to about 8 m/s of airspeed)")
     ap.add_argument("--identify-seed", type=int, default=1, help="world seed of the identification (calm)")
+    ap.add_argument("--identify-esc-order", choices=("rotors", "px4"), default="rotors", help="how the identification "
+                    "numbers windseek's ESC telemetry: rotors (right) or px4 (wrong: to see what it costs)")
+    ap.add_argument("--identify-only", action="store_true", help="stop after the identification")
     ap.add_argument("--from", dest="from_dir", default=None, help="do not fly: recompute the figures from the logs "
                     "a --keep run left in this directory")  # fmt: skip
     args = ap.parse_args()
@@ -235,6 +238,8 @@ def main() -> int:
             print(f"the identification failed (exit {res['returncode']}): see {root / 'identify'}", file=sys.stderr)
             return 1
         args.vehicle = str(path)
+        if args.identify_only:
+            return 0
     rows = []
     print(f"{args.strategy} on {args.scenario} through PX4 SITL ({binary}), estimators' model {args.vehicle}; "
           f"logs in {root}; load "
