@@ -7,6 +7,15 @@ parameters, ``sitl/px4/windseek_nasa_quad.params``; a fresh instance and working
 ``windseek mission --strategy STRATEGY --wind estimated`` on PX4's API link (MAVSDK). Rotor speeds
 come from windseek's ESC telemetry component (``--esc-component 158``).
 
+The estimator's model: ``--vehicle FILE`` (given to ``windseek estimator`` and to the mission's own live
+estimator; default nasa-quad's identified file), or ``--identify FILE``: first the identification flown through
+PX4 (``windseek identify --connect`` on PX4's API link, offboard attitude + thrust setpoints) in windseek's
+``calm`` world, paced at ``--identify-speed`` x real time (``windseek sitl calm --px4 --speed K``: the
+setpoints are paced by the wall clock), rotor speeds from windseek's ESC telemetry (component 158, numbered
+as its rotors: ``--esc-order rotors``), SCALED_IMU; the file written is then the ``--vehicle`` of the
+searches. Both worlds fly the scenario's vehicle by its truth (nasa-quad: blade-element rotors,
+``truth = "bet"``).
+
 Printed per seed: found (declared within 5 m of the true source, horizontally), declared error,
 path flown until the declaration over the start-to-source distance, time to the declaration, the
 estimator's WIND_COV RMSE against the true wind at the vehicle (scored by windseek on what PX4
@@ -14,7 +23,7 @@ forwarded, airborne samples only), the lockstep speed; then the success rate, me
 pooled RMSE. Evaluation seeds (1000+) by default; development seeds are 100-179.
 
 Usage: ``WINDSEEK_PX4_BIN=.../bin/px4 python benchmarks/px4_search.py [--seeds 1000-1009]
-[--scenario open-field] [--strategy surge-cast] [--keep DIR]``.
+[--scenario open-field] [--strategy surge-cast] [--vehicle FILE | --identify FILE] [--keep DIR]``.
 """
 
 from __future__ import annotations
@@ -87,12 +96,13 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
         px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0).start()
         est = subprocess.Popen(_cli("estimator", "--connect", f"udpout://127.0.0.1:{p['gcs']}", "--esc-component",
                                     "158", "--imu-average", "2", "--json", "--link-timeout", "60",
-                                    "--connect-timeout", "120"),
+                                    "--connect-timeout", "120", "--vehicle", args.vehicle),
                                cwd=REPO, stdout=f["estimator.json"], stderr=f["estimator.log"], env=env)  # fmt: skip
         wall0 = time.monotonic()
         with contextlib.suppress(subprocess.TimeoutExpired):  # the mission's own limits normally end it first
             subprocess.run(_cli("mission", "--connect", f"udpout://127.0.0.1:{p['api']}", "--strategy", args.strategy,
-                                "--wind", "estimated", "--esc-component", "158", "--seed", str(seed), "--json"),
+                                "--wind", "estimated", "--esc-component", "158", "--seed", str(seed), "--json",
+                                "--vehicle", args.vehicle),
                            cwd=REPO, stdout=f["mission.json"], stderr=f["mission.log"], env=env,
                            timeout=args.wall_limit)  # fmt: skip
         wall = time.monotonic() - wall0
@@ -102,6 +112,60 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
     r = collect(seed, out)
     r["wall_s"] = round(wall, 1)
     return r
+
+
+def identify(binary: Path, path: Path, args: argparse.Namespace, out: Path) -> dict[str, Any]:
+    """The identification through PX4 in windseek's calm world (see the module docstring); its JSON summary, the
+    wall time, PX4's clock speed and the world's lockstep figures. Writes the vehicle file ``path``."""
+    out.mkdir(parents=True, exist_ok=True)
+    n = free_instance()
+    p = ports(n)
+    k = str(args.identify_speed)
+    with open(out / "windseek.log", "wb") as wlog:
+        ws = subprocess.Popen(_cli("sitl", "calm", "--px4", "--px4-port", str(p["sim"]), "--speed", k, "--seed",
+                                   str(args.identify_seed), "--exit-summary", str(out / "windseek.json")),
+                              cwd=REPO, stdout=wlog, stderr=subprocess.STDOUT, env=dict(os.environ))  # fmt: skip
+        try:
+            with Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=args.identify_speed):
+                w0 = time.monotonic()
+                r = subprocess.run(_cli("identify", "--connect", f"udpout://127.0.0.1:{p['api']}", "--vehicle",
+                                        args.identify_base, "-o", str(path), "--esc-component", "158", "--esc-order",
+                                        args.identify_esc_order, "--imu", "scaled", "--speed-hint", k, "--speed",
+                                        str(args.identify_ref_speed), "--duration", str(args.identify_duration),
+                                        "--validation-duration", str(args.identify_duration / 2), "--plot",
+                                        str(out / "fit.png"), "--json"),
+                                   cwd=REPO, capture_output=True, text=True, timeout=args.wall_limit)  # fmt: skip
+                wall = time.monotonic() - w0
+        finally:
+            _stop(ws)
+    (out / "identify.log").write_text(r.stderr)
+    (out / "identify.json").write_text(r.stdout)
+    res = _json(out / "identify.json")
+    res["returncode"], res["wall_s"] = r.returncode, round(wall, 1)
+    res["world"] = {k: v for k, v in _json(out / "windseek.json").items()
+                    if k in ("lockstep_speed", "lockstep_timeouts", "crashed")}  # fmt: skip
+    return res
+
+
+def identify_report(res: dict[str, Any]) -> None:
+    """The identification's table: R^2 and TIC per axis, the flight's figures."""
+    flight = res.get("flight") or {}
+    print(f"identification through PX4: exit {res.get('returncode')}, abort {res.get('abort')}, {res.get('wall_s')} s "
+          f"wall; streams {flight.get('streams', {}).get('rates_hz')}; clock {flight.get('clock_speed')}x "
+          f"(max in the manoeuvres {flight.get('clock_speed_max')}x); world {res.get('world')}")  # fmt: skip
+    axes = res.get("axes") or {}
+    if axes:
+        print("axis  R^2 %   fit TIC  val TIC")
+
+    def num(x: Any) -> float:
+        return math.nan if x is None else float(x)
+
+    for a, m in axes.items():
+        print(f"{a.upper():>4}  {num(m.get('r2_pct')):6.2f}  {num(m.get('fit_tic')):7.4f}  "
+              f"{num(m.get('val_tic')):7.4f}")  # fmt: skip
+    if res.get("accel_noise_m_s2"):
+        print(f"accelerometer noise in the record: {res['accel_noise_m_s2']} m/s^2; max tilt "
+              f"{flight.get('max_tilt_deg')} deg")  # fmt: skip
 
 
 def collect(seed: int, out: Path) -> dict[str, Any]:
@@ -135,6 +199,21 @@ def main() -> int:
     ap.add_argument("--strategy", default="surge-cast")
     ap.add_argument("--wall-limit", type=float, default=900.0, help="wall seconds per mission")
     ap.add_argument("--keep", default=None, help="keep every run's logs under this directory")
+    ap.add_argument("--vehicle", default="nasa_quad", help="the estimators' vehicle file (name or path; default: "
+                    "nasa-quad, its model identified in-process)")  # fmt: skip
+    ap.add_argument("--identify", metavar="FILE", default=None, help="first identify the vehicle through PX4 in the "
+                    "calm world, write FILE and use it as --vehicle")  # fmt: skip
+    ap.add_argument("--identify-base", default="nasa-quad", help="the vehicle flown in the identification (base file)")
+    ap.add_argument("--identify-speed", type=float, default=4.0, help="lockstep pace of the identification, x real "
+                    "time (default 4)")  # fmt: skip
+    ap.add_argument("--identify-duration", type=float, default=120.0, help="fitting manoeuvre, s (the validation "
+                    "manoeuvre is half of it)")  # fmt: skip
+    ap.add_argument("--identify-ref-speed", type=float, default=8.0, help="peak of the horizontal velocity reference "
+                    "in the identification, m/s (default 8: the searches fly at up to about 8 m/s of airspeed)")
+    ap.add_argument("--identify-seed", type=int, default=1, help="world seed of the identification (calm)")
+    ap.add_argument("--identify-esc-order", choices=("rotors", "px4"), default="rotors", help="how the identification "
+                    "numbers windseek's ESC telemetry: rotors (right) or px4 (wrong: to see what it costs)")
+    ap.add_argument("--identify-only", action="store_true", help="stop after the identification")
     ap.add_argument("--from", dest="from_dir", default=None, help="do not fly: recompute the figures from the logs "
                     "a --keep run left in this directory")  # fmt: skip
     args = ap.parse_args()
@@ -149,8 +228,21 @@ def main() -> int:
         print("set WINDSEEK_PX4_BIN to a PX4 SITL binary (build/px4_sitl_*/bin/px4)", file=sys.stderr)
         return 2
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="px4_search_"))
+    if args.identify:
+        print(f"identifying {args.identify_base} through PX4 in the calm world at {args.identify_speed:g}x; load "
+              f"{os.getloadavg()[0]:.1f}", flush=True)  # fmt: skip
+        path = Path(args.identify).resolve()
+        res = identify(binary, path, args, root / "identify")
+        identify_report(res)
+        if res["returncode"] != 0 or not path.exists():
+            print(f"the identification failed (exit {res['returncode']}): see {root / 'identify'}", file=sys.stderr)
+            return 1
+        args.vehicle = str(path)
+        if args.identify_only:
+            return 0
     rows = []
-    print(f"{args.strategy} on {args.scenario} through PX4 SITL ({binary}); logs in {root}; load "
+    print(f"{args.strategy} on {args.scenario} through PX4 SITL ({binary}), estimators' model {args.vehicle}; "
+          f"logs in {root}; load "
           f"{os.getloadavg()[0]:.1f}", flush=True)  # fmt: skip
     for seed in _seeds(args.seeds):
         r = trial(binary, seed, args, root / f"seed{seed}")

@@ -169,6 +169,27 @@ def test_record_scaled_imu_and_esc_telemetry_only_when_asked_for() -> None:
         Recorder(OutputMap.for_vehicle(v, "px4"), 4, imu="RAW_IMU")
 
 
+def test_esc_telemetry_numbered_by_px4_outputs_or_by_rotors() -> None:
+    """ESC i is PX4 output i on a real vehicle (``px4``); windseek's component 158 numbers them as its rotors
+    (``rotors``): the paper's quad X, whose PX4 outputs 1-4 are rotors 1, 3, 4, 2."""
+    v = load_vehicle("nasa-quad")
+    rpm = [1000.0, 2000.0, 3000.0, 4000.0]
+    speeds = {}
+    for order in ("px4", "rotors"):
+        rec = Recorder(OutputMap.for_vehicle(v, "px4", 1.0), 4, esc_component=158, esc_order=order)
+        rec.target = (1, 1)
+        _feed(rec, 0.0, 6.0)
+        for k in range(0, 300):
+            rec.sink("ESC_STATUS", {"time_usec": k * 20_000, "index": 0, "rpm": rpm}, k * 0.02, 1, 158)
+        d = rec.flight_data(0.5, 5.5, "test")
+        speeds[order] = d.rotor_speeds[100] * 60.0 / (2.0 * math.pi)
+        assert f"ESC_STATUS of component 158 (ESC order {order})" in d.source
+    assert np.allclose(speeds["rotors"], rpm)
+    assert np.allclose(speeds["px4"], [rpm[0], rpm[3], rpm[1], rpm[2]])  # rotor r = output k with PX4_QUAD_X[k] = r
+    with pytest.raises(ValueError, match="ESC order"):
+        Recorder(OutputMap.for_vehicle(v, "px4"), 4, esc_order="sitl")
+
+
 def test_accel_noise_of_a_record_recovers_white_noise() -> None:
     v = load_vehicle("px4-sih-quadx")
     rec = Recorder(OutputMap.for_vehicle(v, "px4", 0.0), 4)
@@ -324,6 +345,9 @@ def test_identify_connect_refusals(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["identify", "--connect", "udpin://0.0.0.0:14540", "--vehicle", "px4-sih-quadx", "--floor", "30",
                  "--ceiling", "20"]) == 2  # fmt: skip
     assert "floor" in capsys.readouterr().err
+    assert main(["identify", "--connect", "udpin://0.0.0.0:14540", "--vehicle", "nasa-quad", "--max-clock-speed",
+                 "-1"]) == 2  # fmt: skip
+    assert "--max-clock-speed -1" in capsys.readouterr().err
 
 
 def test_take_off_command_carries_home_altitude_plus_the_wanted_height() -> None:

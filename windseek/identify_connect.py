@@ -67,6 +67,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--esc-component", type=int, default=None, metavar="ID",
                    help="rotor speeds from ESC_STATUS of this component (158 with windseek sitl --px4; the "
                    "autopilot's own id for real ESC telemetry); default: the motor outputs through the motor map")
+    g.add_argument("--esc-order", choices=("px4", "rotors"), default="px4",
+                   help="how --esc-component numbers its ESCs: px4 (ESC i = PX4 output i, ESCs on PX4's outputs; "
+                   "default) or rotors (ESC i = the vehicle file's rotor i: windseek sitl --px4's component 158)")
+    g.add_argument("--max-clock-speed", type=float, default=6.0, metavar="K", help="refuse to fly, or abort the "
+                   "manoeuvre, when the autopilot's clock runs faster than K x real time (a simulator in free-running "
+                   "lockstep: the setpoints, paced by the wall clock, are then too coarse); 0: no check (default 6)")
     g.add_argument("--imu", choices=("highres", "scaled"), default="highres", help="IMU message: HIGHRES_IMU (PX4 "
                    "subtracts EKF2's accelerometer-bias estimate) or SCALED_IMU (the calibrated sensor; better on PX4 "
                    "SIH, which has no sensor bias while EKF2 estimates 0.1-0.3 m/s^2)")
@@ -141,6 +147,8 @@ def run_connect(args: argparse.Namespace) -> int:
     limits.validate()
     if not (math.isfinite(args.speed_hint) and 0.1 <= args.speed_hint <= 50.0):
         raise ValueError(f"--speed-hint {args.speed_hint:g}: allowed range is [0.1, 50]")
+    if not (math.isfinite(args.max_clock_speed) and args.max_clock_speed >= 0.0):
+        raise ValueError(f"--max-clock-speed {args.max_clock_speed:g}: must be >= 0 (0: no check)")
     out = sys.stderr if args.json else sys.stdout
 
     def say(line: str) -> None:
@@ -150,6 +158,7 @@ def run_connect(args: argparse.Namespace) -> int:
     cfg = Px4FlightConfig(connect=args.connect, vehicle=vehicle, fitting=fit_spec, validation=val_spec,
                           altitude_m=args.altitude, limits=limits, speed_hint=args.speed_hint,
                           output_range=tuple(args.output_range), esc_component=args.esc_component,
+                          esc_order=args.esc_order, max_clock_speed=args.max_clock_speed or None,
                           imu=f"{args.imu.upper()}_IMU", imu_rate_hz=args.imu_rate, dl_loss_s=args.dl_loss,
                           of_loss_s=args.offboard_loss,
                           restore_params=not args.keep_params, connect_timeout_s=args.connect_timeout, say=say,

@@ -7,7 +7,10 @@ The flight, each step bounded in time:
    position); ask for the streams the estimation needs (SET_MESSAGE_INTERVAL: HIGHRES_IMU or SCALED_IMU,
    ATTITUDE_QUATERNION, LOCAL_POSITION_NED, ACTUATOR_OUTPUT_STATUS, SERVO_OUTPUT_RAW, ESC_STATUS when asked for),
    measure what arrives over two seconds and say it (the other IMU message and ATTITUDE are asked for when the
-   first is missing); refuse to fly without IMU, attitude, velocity and motor outputs;
+   first is missing); refuse to fly without IMU, attitude, velocity and motor outputs, and when the autopilot's
+   clock runs faster than ``max_clock_speed`` times the wall clock (a simulator in lockstep as fast as it can:
+   the setpoints go at wall-clock rates through MAVSDK, so at 8x real time a 50 Hz setpoint reaches the vehicle
+   every 0.16 s of its time and the 3 Hz end of the multisine is not flown);
 2. read THR_MDL_FAC (the motor map: rotor speed = w_max sqrt(thrust), thrust = f u^2 + (1 - f) u) and
    MPC_THR_HOVER; set and read back the link-loss failsafes (:func:`identify.fly.px4_link.link_loss_failsafe`);
    refuse to fly when the data-link-loss action is not on;
@@ -75,6 +78,8 @@ class Px4FlightConfig:
     speed_hint: float = 1.0  # the simulator's speed factor (PX4_SIM_SPEED_FACTOR): scales the loss timeouts
     output_range: tuple[float, float] = (1000.0, 2000.0)
     esc_component: int | None = None
+    esc_order: str = "px4"  # ESC_STATUS numbering: px4 (ESC i = PX4 output i) or rotors (the file's rotor i)
+    max_clock_speed: float | None = 6.0  # refuse / abort beyond this autopilot clock over wall clock; None: no check
     imu: str = "HIGHRES_IMU"  # or SCALED_IMU (identify.fly.px4_record.IMU_MESSAGES)
     imu_rate_hz: float = 250.0
     settle_s: float = 5.0
@@ -115,7 +120,7 @@ async def fly_px4(cfg: Px4FlightConfig) -> Px4FlightResult:
         raise MissionError(f"altitude {cfg.altitude_m:g} m: needs 5 m of room to the floor {cfg.limits.floor_m:g} m "
                            f"and the ceiling {cfg.limits.ceiling_m:g} m")  # fmt: skip
     rec = Recorder(vehicle_output_map(cfg.vehicle, cfg.output_range, None), cfg.vehicle.n_rotors, cfg.esc_component,
-                   cfg.imu)  # fmt: skip
+                   cfg.imu, cfg.esc_order)  # fmt: skip
     link = LinkConfig(cfg.connect, cfg.connect_timeout_s, cfg.health_timeout_s, cfg.limits.link_timeout_s,
                       cfg.speed_hint)  # fmt: skip
     res = Px4FlightResult()
@@ -139,6 +144,7 @@ class _Flight:
         self.before: dict[str, float] = {}
         self.changed: dict[str, float] = {}
         self.rep = res.report
+        self.clock_max = 0.0  # the fastest 5-s window of the autopilot's clock in the manoeuvres (x wall)
 
     def say(self, line: str) -> None:
         self.cfg.say(f"identify: {line}")
@@ -153,9 +159,10 @@ class _Flight:
         if cfg.esc_component is None:
             wanted.pop("ESC_STATUS")
         answers = await request_streams(v.direct, v.target, wanted)
-        t0 = v.state.t
+        t0, w0 = v.state.t, time.monotonic()
         await v.wait(lambda: v.state.t - t0 >= 2.0, math.inf, 2.0 + 4.0 / max(cfg.speed_hint, 0.1))
         rates = rec.rates_hz(t0, v.state.t)
+        clock = (v.state.t - t0) / max(time.monotonic() - w0, 1e-3)
         if rates[cfg.imu] == 0.0:
             other = "SCALED_IMU" if cfg.imu == "HIGHRES_IMU" else "HIGHRES_IMU"
             answers.update(await request_streams(v.direct, v.target, {other: cfg.imu_rate_hz, "ATTITUDE": 100.0}))
@@ -176,6 +183,13 @@ class _Flight:
         if lacking:
             raise MissionError(f"refusing to fly: no {', '.join(lacking)} stream from the autopilot (asked with "
                                "SET_MESSAGE_INTERVAL; the answers are in the streams line)")  # fmt: skip
+        self.rep["clock_speed"] = round(clock, 2)
+        self.say(f"the autopilot's clock runs at {clock:.2f}x the wall clock")
+        if cfg.max_clock_speed is not None and clock > cfg.max_clock_speed:
+            raise MissionError(f"refusing to fly: the autopilot's clock runs at {clock:.1f}x real time, above "
+                               f"{cfg.max_clock_speed:g}x: the setpoints and streams are paced by the wall clock, too "
+                               "coarse for the manoeuvre at that speed; pace the simulator (windseek sitl --px4 "
+                               "--speed K, PX4_SIM_SPEED_FACTOR) or raise --max-clock-speed")  # fmt: skip
         fac = await self.params.get("THR_MDL_FAC", "float")
         hover = await self.params.get("MPC_THR_HOVER", "float")
         rec.outputs = vehicle_output_map(cfg.vehicle, cfg.output_range, fac)
@@ -227,6 +241,8 @@ class _Flight:
         if abort is not None:
             self.say(abort.line())
         await self._land(abort)
+        if self.clock_max > 0.0:
+            self.rep["clock_speed_max"] = round(self.clock_max, 2)
         self.rep.update({"max_tilt_deg": round(self.guard.max_tilt_deg, 2),
                          "max_saturated_s": round(self.guard.max_saturated_s, 3),
                          "disarmed": None if v.link_lost() else not st.armed})  # fmt: skip
@@ -326,6 +342,7 @@ class _Flight:
         t_next = t0
         wall_limit = 30.0 + 3.0 * law.m.total_s / max(cfg.speed_hint, 0.1)
         wall_end = time.monotonic() + wall_limit
+        clock0 = (time.monotonic(), st.t)  # the autopilot's clock against the wall clock, windows of 5 s of wall
         while True:
             got = await v.next_tick(t_next)
             if got == Wait.LINK_LOST:
@@ -337,6 +354,13 @@ class _Flight:
                              f"autopilot's clock at {st.t - t0:.1f} of {law.m.total_s:g} s)")
             if got == Wait.TIMEOUT:
                 continue
+            if (wall := time.monotonic()) - clock0[0] >= 5.0:
+                clock = (st.t - clock0[1]) / (wall - clock0[0])
+                self.clock_max = max(self.clock_max, clock)
+                clock0 = (wall, st.t)
+                if cfg.max_clock_speed is not None and clock > cfg.max_clock_speed:
+                    return Abort("clock-speed", f"the autopilot's clock ran at {clock:.1f}x real time for 5 s, "
+                                 f"above {cfg.max_clock_speed:g}x: the setpoints are too coarse at that speed")
             tau = st.t - t0
             if tau >= law.m.total_s:
                 return None

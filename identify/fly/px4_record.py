@@ -14,8 +14,12 @@ Messages (decoded by :mod:`estimator.mavlink_decode`, the live estimator's own d
   PWM range, THR_MDL_FAC read from the autopilot); they are the ``rotor_commands`` and, without ESC
   telemetry, also the ``rotor_speeds`` (the motor lag is applied by the estimation,
   :func:`identify.measure.rotor_speeds`);
-- rotor speeds: ESC_STATUS (rpm, ESC i = PX4 output i) only when asked for (``esc_component``): PX4 SITL's
-  own ESC_STATUS is a placeholder (rpm = 6000 x output, ``SimulatorMavlink.cpp`` 158).
+- rotor speeds: ESC_STATUS (rpm) only when asked for (``esc_component``): PX4 SITL's own ESC_STATUS is a
+  placeholder (rpm = 6000 x output, ``SimulatorMavlink.cpp`` 158). Which rotor ESC i is: ``esc_order``
+  (:data:`ESC_ORDERS`): ``px4`` (default), ESC i = PX4 output i, as on a real vehicle whose ESCs are on PX4's
+  outputs; ``rotors``, ESC i = the vehicle file's rotor i, as windseek's ESC telemetry component numbers them
+  (``sitl/hil/peripheral.py``). With the wrong one the roll, pitch and yaw moments are fitted on swapped rotor
+  speeds (``windseek sitl --px4`` with nasa-quad: L/M/N R^2 near 30 % instead of 97 %).
 
 Commands are held until the next message (zero-order hold), the other series are interpolated linearly
 onto the IMU's time stamps. Excluded: samples where a motor output is at either end of its range (0.1 s
@@ -46,6 +50,8 @@ MESSAGES = ("HIGHRES_IMU", "SCALED_IMU", "ATTITUDE_QUATERNION", "ATTITUDE", "LOC
 #: The IMU messages: PX4's HIGHRES_IMU carries EKF2's accelerometer and gyro bias estimates subtracted
 #: (``streams/HIGHRES_IMU.hpp``), SCALED_IMU the calibrated sensor without them (``streams/SCALED_IMU.hpp``).
 IMU_MESSAGES = ("HIGHRES_IMU", "SCALED_IMU")
+#: How ESC_STATUS numbers its ESCs (see the module docstring).
+ESC_ORDERS = ("px4", "rotors")
 #: A sample this close (fraction of the range) to either end of the output range is saturated.
 SATURATION_TOL = 0.002
 
@@ -68,9 +74,12 @@ class Recorder:
     """The identification's messages of one autopilot (system ``target[0]``), see the module docstring."""
 
     def __init__(self, outputs: OutputMap, n_rotors: int, esc_component: int | None = None,
-                 imu: str = "HIGHRES_IMU") -> None:  # fmt: skip
+                 imu: str = "HIGHRES_IMU", esc_order: str = "px4") -> None:  # fmt: skip
         if imu not in IMU_MESSAGES:
             raise ValueError(f"IMU message {imu!r}: choose one of {', '.join(IMU_MESSAGES)}")
+        if esc_order not in ESC_ORDERS:
+            raise ValueError(f"ESC order {esc_order!r}: choose one of {', '.join(ESC_ORDERS)}")
+        self.esc_order = esc_order
         self.imu = imu
         self.outputs = outputs
         self.n_rotors = n_rotors
@@ -175,7 +184,8 @@ class Recorder:
         esc_note = f"rotor speeds = commands ({out_name} through the motor map; no ESC telemetry used)"
         if self.esc_component is not None and self.counts["ESC_STATUS"]:
             speeds = self._esc_speeds(t)
-            esc_note = f"rotor speeds from ESC_STATUS of component {self.esc_component}, commands from {out_name}"
+            esc_note = (f"rotor speeds from ESC_STATUS of component {self.esc_component} (ESC order "
+                        f"{self.esc_order}), commands from {out_name}")
         data = FlightData(t=t - t0, specific_force=imu[:, 0:3], rates=imu[:, 3:6], rotor_speeds=speeds,
                           velocity_ned=_lerp(t, tp, pv[:, 3:6]), quaternion=_lerp(t, ta, q), rotor_commands=cmd,
                           source=f"{source}; IMU {imu_name}, attitude {att_name}, velocity LOCAL_POSITION_NED; "
@@ -194,7 +204,7 @@ class Recorder:
 
     def _esc_speeds(self, t: np.ndarray) -> np.ndarray:
         rows = self.snapshot("ESC_STATUS")
-        order = self.outputs.order
+        order = self.outputs.order if self.esc_order == "px4" else tuple(range(self.n_rotors))
         cur = np.full(self.n_rotors, np.nan)
         ts, vals = [], []
         for te, v in rows:
