@@ -58,8 +58,8 @@ def table(cells: list[dict]) -> str:
                                          c.get("params", "")))
     lines = ["| scenario | strategy | wind | strategy file | seeds | trials | success % [95 % CI] (radius) | crashes "
              "| declared error median m (all / successes) | declare ratio | reach ratio (2 m) | t median s "
-             "| failures | wall s / mission | before |",
-             "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|"]
+             "| failures | wall s / mission | run | before |",
+             "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|---|"]
     for s in cells:
         fails = ", ".join(f"{k} {v}" for k, v in s["failures"].items()) or "-"
         lo, hi = wilson(s["successes"], s["trials"])
@@ -69,7 +69,7 @@ def table(cells: list[dict]) -> str:
             f"{s['successes']} = {_pct(s['success_rate'])} [{_pct(lo)}-{_pct(hi)}] ({s['success_radius_m']:g} m) | "
             f"{s['crashes']} | {_f(s['declared_error_median_m'], 1)} / {_f(s['error_median_m'], 1)} | "
             f"{_f(s['path_ratio_median'])} | {_f(s['reach_ratio_median'])} | {_f(s['time_median_s'], 0)} | "
-            f"{fails} | {_f(s['wall_s_mean'], 1)} | {s.get('before') or '-'} |")
+            f"{fails} | {_f(s['wall_s_mean'], 1)} | {s['date']} | {s.get('before') or '-'} |")
     return "\n".join(lines)
 
 
