@@ -46,7 +46,8 @@ def test_a_duplicated_item_is_ignored_not_answered(monkeypatch: pytest.MonkeyPat
             peer.mav.mission_count_send(1, 1, 3, 0)
             requests: list[int] = []
 
-            def until(pred: Callable[[Any], bool], timeout: float = 3.0) -> Any:
+            # (10 s for an answer: it comes in milliseconds, but beside another e2e test on 2 cores 3 s was not enough)
+            def until(pred: Callable[[Any], bool], timeout: float = 10.0) -> Any:
                 t_end = time.monotonic() + timeout
                 while time.monotonic() < t_end:
                     m = peer.recv_match(type=["MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=0.1)
