@@ -18,9 +18,8 @@ venv: $(BIN)/.installed
 demo: venv
 	$(BIN)/windseek demo
 
-# Two test processes: the end-to-end tests mostly wait on paced clocks (README, Development notes).
 test: venv
-	$(BIN)/python -m pytest -q -n 2 --dist worksteal --durations=15
+	$(BIN)/python -m pytest -q --durations=15
 
 # The fast suite alone: everything but the end-to-end tests (processes, MAVSDK, MAVProxy).
 test-fast: venv
