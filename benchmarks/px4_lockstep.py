@@ -69,6 +69,7 @@ class _Telemetry:
         self.m = mavutil.mavlink_connection(f"udpout:127.0.0.1:{api_port}", source_system=245, source_component=190)
         self.t_px4 = -1.0
         self.alt = 0.0
+        self.home_amsl: float | None = None  # the vehicle's own home (SIH's is its SIH_LOC_H0, not windseek's)
         self.sysid: int | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -85,6 +86,7 @@ class _Telemetry:
                 continue
             if msg.get_type() == "GLOBAL_POSITION_INT":
                 self.t_px4, self.alt = msg.time_boot_ms * 1e-3, msg.relative_alt * 1e-3
+                self.home_amsl = (msg.alt - msg.relative_alt) * 1e-3
             elif msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
                 self.sysid = msg.get_srcSystem()
 
@@ -118,8 +120,9 @@ def fly_and_measure(api_port: int, seconds: float, windows: int, pids: list[int]
             if time.monotonic() > end:
                 raise RuntimeError("PX4 did not take off to 10 m within 240 s")
             if tel.alt < 0.5 and time.monotonic() - sent > 10.0 and tel.t_px4 > 10.0:
+                home = HOME_ALT_M if tel.home_amsl is None else tel.home_amsl
                 tel.command(400, 1, 0, 0, 0, 0, 0, 0)  # arm
-                tel.command(22, 0, 0, 0, float("nan"), float("nan"), float("nan"), HOME_ALT_M + 10.0)  # take off
+                tel.command(22, 0, 0, 0, float("nan"), float("nan"), float("nan"), home + 10.0)  # take off
                 sent = time.monotonic()
             time.sleep(0.2)
         time.sleep(3.0)  # settle in hover
