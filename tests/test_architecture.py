@@ -22,6 +22,9 @@ MAX_LINES = 450
 FORBIDDEN = [
     ("sitl.world", "sitl.autopilot"),  # the world takes rotor commands, it has no autopilot inside
     ("sitl.world", "sitl.link"),
+    ("sitl.world", "sitl.hil"),  # the world knows no autopilot's simulator protocol
+    ("sitl.world", "sitl.ardupilot"),
+    ("sitl.hil", "sitl.ardupilot"),  # PX4's bridge needs nothing of ArduPilot's (the reverse reuses its parts)
     ("sitl", "mission"),
     ("sitl", "estimator"),
     ("vehicle", "sitl"),

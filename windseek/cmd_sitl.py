@@ -109,6 +109,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--exit-summary", metavar="PATH", help="write a JSON file at shutdown with truth-based figures: "
                    "wind RMSE of the received WIND_COV, true and declared source, path length, final state")
     _add_px4_options(p)
+    from sitl.ardupilot.launch import add_options
+
+    add_options(p)
     p.set_defaults(func=run)
 
 
@@ -196,6 +199,10 @@ def run(args: argparse.Namespace) -> int:
         from sitl.hil.launch import run_px4
 
         return run_px4(args)
+    if getattr(args, "ardupilot", False):
+        from sitl.ardupilot.launch import run_ardupilot
+
+        return run_ardupilot(args)
     link = build(args)
     try:
         wire = _attach_wire(link, args)

@@ -155,7 +155,7 @@ class HilBridge:
         d.update({"wind_true_at_vehicle_ned_m_s": [round(float(v), 3) for v in w.wind_at_vehicle],
                   "final_position_ned_m": [round(float(v), 3) for v in w.position],
                   "final_velocity_ned_m_s": [round(float(v), 3) for v in w.velocity],
-                  "px4_armed": self.guard.px4_armed, "crashed": bool(w.crashed), "on_ground": bool(w.on_ground),
+                  "px4_armed": self.guard.armed, "crashed": bool(w.crashed), "on_ground": bool(w.on_ground),
                   "max_touchdown_speed_m_s": round(float(w.phys.flags[2]), 3),
                   "safety_pilot": self.guard.safety is not None})  # fmt: skip
         d.update({k: int(v) for k, v in self.guard.counters.items()})

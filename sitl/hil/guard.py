@@ -51,11 +51,13 @@ class ControlGuard:
         flight, gains: the safety pilot's flight settings (its land speed) and controller gains
             (the scenario's; the world does not carry them).
         hold_s: simulation seconds to hold the last valid command through invalid outputs.
+        autopilot: its name in the messages (PX4, ArduPilot).
     """
 
     def __init__(self, world: World, motors: MotorMap, say: Callable[[str], None], flight: FlightConfig,
-                 gains: ControllerGains, hold_s: float = HOLD_S) -> None:  # fmt: skip
+                 gains: ControllerGains, hold_s: float = HOLD_S, autopilot: str = "PX4") -> None:  # fmt: skip
         self.world = world
+        self.autopilot = autopilot
         self.flight, self.gains = flight, gains
         self.motors = motors
         self.say = say
@@ -63,7 +65,7 @@ class ControlGuard:
         self.command = RotorCommand(world.n_rotors)
         self.safety: BuiltinAutopilot | None = None
         self.counters: Counter[str] = Counter()
-        self.px4_armed = False
+        self.armed = False  # what the autopilot's last valid output set said
         self.valid = 0
         self._bad_since = math.nan
         self._reported: set[str] = set()
@@ -92,26 +94,31 @@ class ControlGuard:
         """One HIL_ACTUATOR_CONTROLS (``controls``, ``mode``); True if it was valid."""
         v = self.motors.check(controls, mode)
         if v.speeds is None:
-            self.counters[f"controls_{v.problem}"] += 1
-            if v.problem not in self._reported:
-                self._reported.add(v.problem)
-                self.say(f"PX4 outputs refused ({v.problem}) at t = {self.world.t:.2f} s: {v.why}; holding the last "
-                         f"valid command for {self.hold_s:g} s (further ones counted)")  # fmt: skip
-            if not math.isfinite(self._bad_since):
-                self._bad_since = self.world.t
-            return False
+            return self.refuse(v.problem, v.why)
         self.valid += 1
         self._bad_since = math.nan
-        self.px4_armed = v.armed
+        self.armed = v.armed
         if self._reconnected:
             self._reconnected = False
             if not v.armed and self.airborne and self.safety is None:
-                self._engage("PX4 came back disarmed with the vehicle in the air (a reboot?)")
+                self._engage(f"{self.autopilot} came back disarmed with the vehicle in the air (a reboot?)")
         if self.safety is None:
             # MotorMap.check validated them (finite, in [0, omega_max]): RotorCommand.set's own checks
             # would only repeat that, once per lockstep step.
             self.command.speeds[:] = v.speeds
         return True
+
+    def refuse(self, problem: str, why: str) -> bool:
+        """An output set that cannot drive the rotors (``problem``: the counter's suffix; ``why``: one
+        line): counted, said once per kind, and the hold limit's clock started. Returns False."""
+        self.counters[f"controls_{problem}"] += 1
+        if problem not in self._reported:
+            self._reported.add(problem)
+            self.say(f"{self.autopilot} outputs refused ({problem}) at t = {self.world.t:.2f} s: {why}; holding the "
+                     f"last valid command for {self.hold_s:g} s (further ones counted)")  # fmt: skip
+        if not math.isfinite(self._bad_since):
+            self._bad_since = self.world.t
+        return False
 
     def on_reconnect(self) -> None:
         """PX4 connected again after a loss: its first output set is checked for a disarmed reboot."""
@@ -123,15 +130,15 @@ class ControlGuard:
         if math.isfinite(self._bad_since) and w.t - self._bad_since >= self.hold_s and self.safety is None:
             self._bad_since = math.nan
             if self.airborne:
-                self._engage(f"no valid PX4 outputs for {self.hold_s:g} s")
+                self._engage(f"no valid {self.autopilot} outputs for {self.hold_s:g} s")
             else:
                 self.command.set(np.zeros(self.world.n_rotors))
                 self.counters["stopped_on_ground"] += 1
-                self.say(f"no valid PX4 outputs for {self.hold_s:g} s on the ground: rotors stopped")
+                self.say(f"no valid {self.autopilot} outputs for {self.hold_s:g} s on the ground: rotors stopped")
         if self.safety is not None and not self.safety.fc.armed:
             self.safety = None
             self.command.set(np.zeros(self.world.n_rotors))
-            self.say(f"safety landing done at t = {w.t:.2f} s: PX4's outputs drive the rotors again")
+            self.say(f"safety landing done at t = {w.t:.2f} s: {self.autopilot}'s outputs drive the rotors again")
 
     def _engage(self, why: str) -> None:
         w = self.world

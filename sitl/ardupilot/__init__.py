@@ -1,0 +1,1 @@
+"""windseek as ArduPilot SITL's physics (the JSON interface): see ``README.md`` in this folder."""
