@@ -14,7 +14,7 @@ import pytest
 
 from sitl.ardupilot import json_protocol as jp
 from sitl.ardupilot.bridge import ArduPilotBridge
-from sitl.ardupilot.motors import SPIN_MAX, SPIN_MIN, ardupilot_figures, pwm_to_controls
+from sitl.ardupilot.motors import SPIN_MAX, SPIN_MIN, ardupilot_figures, pwm_to_speeds
 from sitl.ardupilot.params import PARAMS_FILE, parm_text
 from sitl.ardupilot.runner import JsonOptions, JsonRunner
 from sitl.scenario import load_scenario
@@ -83,15 +83,16 @@ def test_the_reply_is_read_by_ardupilots_parser_and_is_json() -> None:
         jp.state_reply(float("nan"), [0] * 3, [0] * 3, [0] * 3, [0] * 3, [1, 0, 0, 0])
 
 
-def test_pwm_maps_to_esc_commands_in_the_motor_order_and_out_of_range_is_refused() -> None:
-    c = pwm_to_controls(tuple([1500, 1000, 2000, 1250] + [1500] * 12), 4)
-    assert not isinstance(c, str)
-    controls, mode = c
-    assert controls[:4] == [0.5, 0.0, 1.0, 0.25] and controls[4:] == [0.0] * 12 and mode == 128
-    assert pwm_to_controls(tuple([1000] * 4 + [1500] * 12), 4)[1] == 0  # type: ignore[index]  # disarmed: at MOT_PWM_MIN
-    assert pwm_to_controls(tuple([0] * 16), 4) == ([0.0] * 16, 0)  # not started yet
-    assert pwm_to_controls(tuple([2050, 950] + [1000] * 14), 4)[0][:2] == [1.0, 0.0]  # type: ignore[index]  # clipped
-    bad = pwm_to_controls(tuple([1500, 2500, 1500, 700] + [0] * 12), 4)
+def test_pwm_maps_to_rotor_speeds_in_the_motor_order_and_out_of_range_is_refused() -> None:
+    order = [0, 2, 3, 1]
+    r = pwm_to_speeds(tuple([1500, 1000, 2000, 1250] + [1500] * 12), order, 600.0)
+    assert not isinstance(r, str)
+    speeds, armed = r
+    assert speeds == [300.0, 150.0, 0.0, 600.0] and armed  # rotor order: outputs 1, 4, 2, 3
+    assert pwm_to_speeds(tuple([1000] * 4 + [1500] * 12), order, 600.0) == ([0.0] * 4, False)  # disarmed
+    assert pwm_to_speeds(tuple([0] * 16), order, 600.0) == ([0.0] * 4, False)  # not started yet
+    assert pwm_to_speeds(tuple([2050, 950, 1000, 1000] + [0] * 12), order, 600.0)[0] == [600.0, 0, 0, 0]  # clipped
+    bad = pwm_to_speeds(tuple([1500, 2500, 1500, 700] + [0] * 12), order, 600.0)
     assert isinstance(bad, str) and "[2, 4]" in bad
     # ArduCopter's motor 1 (front right) drives windseek's rotor 1, 2 (rear left) rotor 3, 3 (front left) rotor 4,
     # 4 (rear right) rotor 2.
@@ -185,7 +186,7 @@ def test_lockstep_one_reply_per_frame_resends_restarts_and_junk(served: tuple[Js
     assert sum("not a servo packet" in s for s in said) == 2
     # Climb at full power, then ArduPilot restarts (frame 0) disarmed: the safety pilot lands the vehicle.
     n = 51
-    for _ in range(500):
+    for _ in range(1500):
         ap.frame(n, [1950] * 4 + [0] * 12)
         n += 1
     w = r.bridge.world
@@ -194,7 +195,7 @@ def test_lockstep_one_reply_per_frame_resends_restarts_and_junk(served: tuple[Js
     ap.frame(0, [1000] * 4 + [0] * 12)
     assert r.counters["restarts"] == 1 and r.bridge.guard.counters["safety_landings"] == 1
     assert any("restarted" in s for s in said) and any("lands the vehicle" in s for s in said)
-    for i in range(1, 25000):
+    for i in range(1, 50000):
         ap.frame(i, [1000] * 4 + [0] * 12)
         if r.bridge.guard.safety is None:
             break

@@ -1,17 +1,19 @@
 """The world as ArduPilot's JSON physics, one servo packet at a time: plain synchronous code, no I/O.
 
 Each servo packet ArduPilot sends (:mod:`sitl.ardupilot.json_protocol`) advances the world by one
-physics tick (2 ms at the default 500 Hz) with the rotor speeds its motor outputs command
-(:mod:`sitl.ardupilot.motors`, checked and, when they cannot be trusted, replaced by windseek's
+physics tick (1 ms: 1000 Hz here, 500 Hz in the scenario files) with the rotor speeds its motor
+outputs command (:mod:`sitl.ardupilot.motors`, checked and, when they cannot be trusted, replaced by windseek's
 safety pilot: :class:`sitl.hil.guard.ControlGuard`), and answers with the state after the tick:
 the IMU sample of that tick (windseek's IMU model: noise, turn-on bias, bias walk) and the truth
 (position, velocity, attitude). ArduPilot's clock is the ``timestamp`` of these replies, so
 ArduPilot runs in lockstep with the world, at the pace its ``--speedup`` sets.
 
-**The IMU at the physics rate.** ArduCopter's main loop runs at 400 Hz and reads an IMU sample at
-every physics frame, so the IMU is sampled at every tick (500 Hz instead of the scenario's 250 Hz);
-its white noise per sample is scaled by ``sqrt(500 / 250)`` so that its spectral density, and what
-any filter sees of it, stays the scenario's. Bias and bias walk are unchanged.
+**The IMU at the physics rate.** ArduCopter reads an IMU sample at every physics frame and refuses
+to arm unless that rate is at least 1.8 times its 400 Hz main loop ("PreArm: Gyro 0 rate 500Hz <
+loop ratex1.8 720Hz" at 500 Hz), so for ArduPilot the world ticks at 1000 Hz and the IMU is sampled
+at every tick (the scenario's is 250 Hz); its white noise per sample is scaled by ``sqrt(1000 /
+250)`` so that its spectral density, and what any filter sees of it, stays the scenario's. Bias and
+bias walk are unchanged. The finer step changes nothing physical (RK4 at 1 ms against 2 ms).
 
 **What ArduPilot simulates itself.** The JSON interface carries no GNSS, barometer or magnetometer:
 ArduPilot's SITL derives them from the position and attitude it is sent, with its own ``SIM_GPS*``,
@@ -33,17 +35,23 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from sitl.ardupilot.json_protocol import ServoPacket, state_reply
-from sitl.ardupilot.motors import PWM_MAX, PWM_MIN, check_quad_x, pwm_to_controls
+from sitl.ardupilot.motors import check_quad_x, pwm_to_speeds
 from sitl.hil import messages as hm
 from sitl.hil.bridge import TRUE_WIND_HZ, ground_start
 from sitl.hil.guard import ControlGuard
-from sitl.hil.motors import MotorMap
+from sitl.hil.motors import MotorMap, rotors_of_outputs
 from sitl.hil.summary import TruthScore
 from sitl.scenario import Scenario
 from sitl.world.kernel import T_POS, T_QUAT, T_TIME, T_VEL, T_WIND
 from sitl.world.plume.part import CHEM_OUTPUT
 from sitl.world.world import World
+
+#: Physics and IMU rate for ArduPilot [Hz]: ArduCopter's pre-arm check wants the gyro at 1.8x its 400 Hz
+#: main loop (``AP_InertialSensor::pre_arm_check_gyro_backend_rate_hz``), and each frame is one tick.
+PHYSICS_HZ = 1000.0
 
 
 @dataclass
@@ -54,14 +62,14 @@ class FrameOutput:
     to_companion: list[Any] = field(default_factory=list)
 
 
-def imu_at_physics_rate(scenario: Scenario) -> Scenario:
-    """The scenario with its IMU sampled at every physics tick, white noise scaled to keep its density."""
+def for_ardupilot(scenario: Scenario) -> Scenario:
+    """The scenario with the physics at :data:`PHYSICS_HZ` and its IMU sampled at every tick, the IMU's
+    white noise per sample scaled to keep its spectral density (module docstring)."""
     s = scenario.sensors
-    rate = float(scenario.physics_rate_hz)
-    k = math.sqrt(rate / s.imu.rate_hz)
-    imu = dataclasses.replace(s.imu, rate_hz=rate, accel_noise_m_s2=s.imu.accel_noise_m_s2 * k,
+    k = math.sqrt(PHYSICS_HZ / s.imu.rate_hz)
+    imu = dataclasses.replace(s.imu, rate_hz=PHYSICS_HZ, accel_noise_m_s2=s.imu.accel_noise_m_s2 * k,
                               gyro_noise_rad_s=s.imu.gyro_noise_rad_s * k)  # fmt: skip
-    return dataclasses.replace(scenario, sensors=dataclasses.replace(s, imu=imu))
+    return dataclasses.replace(scenario, physics_rate_hz=PHYSICS_HZ, sensors=dataclasses.replace(s, imu=imu))
 
 
 class ArduPilotBridge:
@@ -74,11 +82,12 @@ class ArduPilotBridge:
     """
 
     def __init__(self, scenario: Scenario, seed: int | None = None, say: Callable[[str], None] = print) -> None:
-        sc = imu_at_physics_rate(ground_start(scenario, say))
+        sc = for_ardupilot(ground_start(scenario, say))
         self.scenario = sc
         self.world = World(sc.world_spec(), seed=seed)
         check_quad_x(self.world.vehicle)
         self.motors = MotorMap(self.world.vehicle)
+        self._order = list(rotors_of_outputs(self.world.vehicle))
         self.guard = ControlGuard(self.world, self.motors, say, sc.flight, sc.gains, autopilot="ArduPilot")
         self.tick_s = self.world.dt
         self.truth = TruthScore(rate_hz=sc.mode_rate_hz)
@@ -104,11 +113,11 @@ class ArduPilotBridge:
 
     def on_servos(self, pkt: ServoPacket) -> bool:
         """Apply a servo packet's motor outputs (from the next tick on); False if they were refused."""
-        r = pwm_to_controls(pkt.pwm, self.motors.n_motors, PWM_MIN, PWM_MAX)
+        r = pwm_to_speeds(pkt.pwm, self._order, self.motors.omega_max)
         if isinstance(r, str):
             return self.guard.refuse("out_of_range", r)
-        controls, mode = r
-        return self.guard.on_controls(controls, mode)
+        speeds, armed = r
+        return self.guard.accept(np.array(speeds), armed)
 
     def step(self) -> FrameOutput:
         """Advance one physics tick; the JSON state after it and the companions' messages."""
@@ -117,7 +126,8 @@ class ArduPilotBridge:
         w = self.world
         row = w.last_truth
         t, acc, gyr = self._imu
-        out = FrameOutput(state_reply(float(row[T_TIME]), gyr, acc, row[T_POS], row[T_VEL], row[T_QUAT]))
+        tr = row.tolist()  # Python floats format several times faster than numpy scalars
+        out = FrameOutput(state_reply(tr[T_TIME], gyr.tolist(), acc.tolist(), tr[T_POS], tr[T_VEL], tr[T_QUAT]))
         s = self._pending
         for te, speeds in s["esc"]:
             out.to_companion.append(hm.esc_status(te, speeds))

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 #: Magic of a 16-channel servo packet, and of a 32-channel one (``SIM_JSON.h`` servo_packet_16/32).
 MAGIC_16 = 18458
@@ -76,17 +77,19 @@ def servo_packet(frame_count: int, pwm: list[int] | tuple[int, ...], frame_rate:
     raise ValueError(f"{len(pwm)} channels: a servo packet has 16 or 32")
 
 
-def _vec(v: object) -> str:
-    # repr of a float is the shortest string that reads back exactly; ArduPilot reads floats with sscanf.
-    return "[" + ",".join(repr(float(x)) for x in v) + "]"  # type: ignore[attr-defined]
+#: The state line: timestamp and position as doubles (ArduPilot reads them with strtod / ``%lf``), the
+#: rest as float32 (``%f``): 17 and 9 significant digits read back exactly. One format call: this runs
+#: once per ArduPilot frame (1000 a simulated second).
+_STATE = ('\n{"timestamp":%.17g,"imu":{"gyro":[%.9g,%.9g,%.9g],"accel_body":[%.9g,%.9g,%.9g]},'
+          '"position":[%.17g,%.17g,%.17g],"velocity":[%.9g,%.9g,%.9g],"quaternion":[%.9g,%.9g,%.9g,%.9g]}\n')
 
 
-def state_reply(t: float, gyro_frd: object, accel_frd: object, pos_ned: object, vel_ned: object,
-                quat: object) -> bytes:  # fmt: skip
+def state_reply(t: float, gyro_frd: Any, accel_frd: Any, pos_ned: Any, vel_ned: Any, quat: Any) -> bytes:
     """The JSON state line for simulation time ``t`` [s]: rates [rad/s] and specific force [m/s^2] in
     body FRD (the IMU sample), position [m] and velocity [m/s] NED, attitude quaternion ``[w, x, y, z]``
-    (body -> NED). Newline before and after, as ``recv_fdm`` splits on them."""
+    (body -> NED); numpy arrays or sequences. Newline before and after, as ``recv_fdm`` splits on them."""
     if not math.isfinite(t):
         raise ValueError(f"timestamp {t}: not finite")
-    return (f'\n{{"timestamp":{t!r},"imu":{{"gyro":{_vec(gyro_frd)},"accel_body":{_vec(accel_frd)}}},'
-            f'"position":{_vec(pos_ned)},"velocity":{_vec(vel_ned)},"quaternion":{_vec(quat)}}}\n').encode()
+    g, a, p, v, q = gyro_frd, accel_frd, pos_ned, vel_ned, quat
+    return (_STATE % (t, g[0], g[1], g[2], a[0], a[1], a[2], p[0], p[1], p[2], v[0], v[1], v[2],
+                      q[0], q[1], q[2], q[3])).encode()  # fmt: skip

@@ -8,7 +8,7 @@ the vehicle file's ``px4_outputs`` serve both autopilots (:func:`sitl.hil.motors
 output ``i`` drives windseek rotor ``(0, 2, 3, 1)[i]`` and the spin directions agree. Only quad X
 vehicles are mapped; ArduCopter's hexa X numbers its motors unlike PX4's.
 
-**PWM.** An output of ``pwm`` microseconds is the ESC command ``a = (pwm - MOT_PWM_MIN) /
+**PWM.** An output of ``pwm`` microseconds (:func:`pwm_to_speeds`) is the ESC command ``a = (pwm - MOT_PWM_MIN) /
 (MOT_PWM_MAX - MOT_PWM_MIN)`` (1000-2000 us here), clipped to [0, 1]; the ESC commands the rotor
 speed ``omega = omega_max * a`` (the same linear speed command as windseek's PX4 bridge,
 :mod:`sitl.hil.motors`), and the motor follows with its first-order lag. ``pwm`` 0 (a channel
@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sitl.hil.motors import MODE_ARMED, N_OUTPUTS, rotors_of_outputs
+from sitl.hil.motors import rotors_of_outputs
 from vehicle.params import VehicleParams
 
 #: ArduCopter's defaults (``MOT_PWM_MIN/MAX`` as the parameter file sets them, ``MOT_SPIN_*`` defaults).
@@ -83,18 +83,23 @@ def ardupilot_figures(vehicle: VehicleParams, spin_min: float = SPIN_MIN, spin_m
                              thrust_to_weight=float(thrust(spin_max) / t_hover))  # fmt: skip
 
 
-def pwm_to_controls(pwm: tuple[int, ...], n_motors: int, pwm_min: int = PWM_MIN, pwm_max: int = PWM_MAX
-                    ) -> tuple[list[float], int] | str:  # fmt: skip
-    """The first ``n_motors`` outputs as ESC commands in [0, 1] padded to 16 (the shape windseek's
-    output checks take, :class:`sitl.hil.motors.MotorMap`) and the armed mode bit, or a one-line
-    reason why the packet cannot drive the rotors. Channels past the motors are not read: on
-    ArduCopter they carry whatever their ``SERVOn_FUNCTION`` says (RC pass-through, trim)."""
-    m = pwm[:n_motors]
-    bad = [i + 1 for i, p in enumerate(m) if p != 0 and not pwm_min - PWM_SLACK_US <= p <= pwm_max + PWM_SLACK_US]
-    if bad:
+def pwm_to_speeds(pwm: tuple[int, ...], rotor_of_output: list[int], omega_max: float, pwm_min: int = PWM_MIN,
+                  pwm_max: int = PWM_MAX) -> tuple[list[float], bool] | str:  # fmt: skip
+    """Rotor speed commands (rad/s, windseek's rotor order) of the motor outputs and whether ArduCopter is
+    armed (a motor above ``pwm_min``: it idles at ``MOT_SPIN_ARM``), or a one-line reason why the packet
+    cannot drive the rotors. ``rotor_of_output[i]``: the rotor output ``i`` drives. Channels past the motors
+    are not read: on ArduCopter they carry whatever their ``SERVOn_FUNCTION`` says (RC pass-through, trim).
+    Plain Python: this runs once per frame, and numpy's call overhead on four numbers is more than the work."""
+    n = len(rotor_of_output)
+    m = pwm[:n]
+    lo, hi = pwm_min - PWM_SLACK_US, pwm_max + PWM_SLACK_US
+    if not all(lo <= p <= hi or p == 0 for p in m):
+        bad = [i + 1 for i, p in enumerate(m) if p != 0 and not lo <= p <= hi]
         return (f"motor output(s) {bad} at {[m[i - 1] for i in bad]} us, outside {pwm_min}-{pwm_max} us by more "
                 f"than {PWM_SLACK_US} us")  # fmt: skip
-    span = float(pwm_max - pwm_min)
-    controls = [min(max((p - pwm_min) / span, 0.0), 1.0) if p else 0.0 for p in m]
-    armed = any(p > pwm_min + ARMED_ABOVE_US for p in m)
-    return controls + [0.0] * (N_OUTPUTS - n_motors), (MODE_ARMED if armed else 0)
+    k = omega_max / float(pwm_max - pwm_min)
+    speeds = [0.0] * n
+    for i, p in enumerate(m):
+        if p > pwm_min:
+            speeds[rotor_of_output[i]] = omega_max if p >= pwm_max else (p - pwm_min) * k
+    return speeds, max(m) > pwm_min + ARMED_ABOVE_US

@@ -44,11 +44,22 @@ def vehicle_params(vehicle: VehicleParams) -> list[tuple[str, float]]:
     p += [("BATT_MONITOR", 4), ("BATT_CAPACITY", round(vehicle.battery_capacity_mah)),
           ("SIM_BATT_VOLTAGE", round(CELL_FULL_V * vehicle.battery_cells, 2)),
           ("SIM_BATT_CAP_AH", round(vehicle.battery_capacity_mah / 1000.0, 3))]  # fmt: skip
-    p += [("FS_GCS_ENABLE", 1), ("FS_GCS_TIMEOUT", 5)]
+    p += [("FS_GCS_ENABLE", 1), ("FS_GCS_TIMEOUT", FS_GCS_TIMEOUT_S)]
     for i in (1, 2, 3):
         p += [(f"SIM_ACC{i}_RND", 0), (f"SIM_GYR{i}_RND", 0)]
     p += [("SIM_VIB_MOT_MAX", 0)]
     return p
+
+
+#: ArduCopter's ground-station failsafe timeout in the shipped file [s of ArduPilot's clock].
+FS_GCS_TIMEOUT_S = 5.0
+
+
+def speedup_params(speedup: float) -> list[tuple[str, float]]:
+    """Parameters that depend on ArduPilot SITL's ``--speedup``: the ground-station failsafe timeout
+    runs on ArduPilot's (simulated) clock while ground stations send their heartbeats once per wall
+    second, so at speedup K it is ``K`` times the shipped 5 s (ArduPilot's maximum: 120 s)."""
+    return [("FS_GCS_TIMEOUT", min(120.0, round(FS_GCS_TIMEOUT_S * max(1.0, float(speedup)), 1)))]
 
 
 def _fmt(v: float) -> str:

@@ -95,17 +95,22 @@ class ControlGuard:
         v = self.motors.check(controls, mode)
         if v.speeds is None:
             return self.refuse(v.problem, v.why)
+        return self.accept(v.speeds, v.armed)
+
+    def accept(self, speeds: np.ndarray, armed: bool) -> bool:
+        """A checked output set: rotor speed commands (rad/s, windseek's rotor order, finite, within the
+        rotors' range) and the autopilot's armed state. Returns True."""
         self.valid += 1
         self._bad_since = math.nan
-        self.armed = v.armed
+        self.armed = armed
         if self._reconnected:
             self._reconnected = False
-            if not v.armed and self.airborne and self.safety is None:
+            if not armed and self.airborne and self.safety is None:
                 self._engage(f"{self.autopilot} came back disarmed with the vehicle in the air (a reboot?)")
         if self.safety is None:
             # MotorMap.check validated them (finite, in [0, omega_max]): RotorCommand.set's own checks
             # would only repeat that, once per lockstep step.
-            self.command.speeds[:] = v.speeds
+            self.command.speeds[:] = speeds
         return True
 
     def refuse(self, problem: str, why: str) -> bool:
