@@ -17,6 +17,8 @@ from wire.dialect import mavlink
 _VERSION_TYPES = ((255, ""), (192, "rc"), (128, "beta"), (64, "alpha"), (0, "dev"))
 #: MAV_TYPE values of multirotors with four rotors (the paper's model has four).
 QUADROTOR_TYPES = frozenset({mavlink.MAV_TYPE_QUADROTOR})
+#: Vehicle types (the words of :func:`mav_type_name`, PX4's and the DataFlash reader's) that never fly.
+NON_FLYING_TYPES = frozenset({"submarine", "ground rover", "surface boat", "rover", "antenna tracker"})
 #: PX4 vehicle_status.vehicle_type (VEHICLE_TYPE_*) -> words.
 PX4_VEHICLE_TYPES = {0: "unknown", 1: "multicopter", 2: "fixed wing", 3: "rover", 4: "airship"}
 
@@ -62,4 +64,4 @@ def model_caveat(vehicle_type: str, vehicle_file: str, simulated: bool = False) 
             "so the figure is not a wind measurement (only the autopilot's own estimate, where logged, is)")
 
 
-__all__ = ["PX4_VEHICLE_TYPES", "QUADROTOR_TYPES", "mav_type_name", "model_caveat", "sw_version"]
+__all__ = ["NON_FLYING_TYPES", "PX4_VEHICLE_TYPES", "QUADROTOR_TYPES", "mav_type_name", "model_caveat", "sw_version"]
