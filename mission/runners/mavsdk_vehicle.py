@@ -208,6 +208,7 @@ class MavsdkVehicle:
         if "time_boot_ms" in f and t > 0.0:
             if t < st.t - CLOCK_RESET_S:
                 self.counters["clock_resets"] += 1
+                st.boots += 1
                 self.say(f"mission: the vehicle clock went back from {st.t:.1f} s to {t:.1f} s (reboot?)")
                 st.t = t
             elif not t < st.t or math.isnan(st.t):
