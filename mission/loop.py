@@ -13,7 +13,8 @@ landing; the same for the lockstep simulator and for a real autopilot through MA
    setpoint clamped into the limits and sent (offboard starts after the first one);
 5. the strategy done with a declaration: fly over it and land there (``land_at_end``), or stop
    (batch evaluation); an abort: hold, then land; a link loss: leave the vehicle to its own
-   failsafe, and if the link comes back, look at the vehicle again before doing anything.
+   failsafe, and if the link comes back, look at the vehicle again before doing anything (a vehicle
+   found disarmed is credited to the autopilot's failsafe only if the autopilot did not restart meanwhile).
 
 Every decision reads the vehicle's own state (:class:`~mission.vehicle.VehicleState`), and the result
 says what happened (:class:`~mission.result.MissionResult`). Units SI, NED; vehicle time.
@@ -348,6 +349,7 @@ class MissionLoop:
 
     async def _after_link_loss(self) -> None:
         self.result.link_lost = True
+        boots = self.v.state.boots
         await self._quietly(self.v.stop_offboard())  # stop MAVSDK repeating the last setpoint
         if not await self.v.await_link(self.cfg.link_grace_s):
             self.say(f"LINK: still down after {self.cfg.link_grace_s:g} s: the autopilot's failsafe is in charge "
@@ -355,6 +357,13 @@ class MissionLoop:
             return
         st = self.v.state
         self.say(f"LINK: telemetry is back (mode {st.mode}, {'armed' if st.armed else 'disarmed'})")
+        if not st.armed and st.boots > boots:
+            # A restarted autopilot (PX4 killed and started again) boots disarmed: whatever brought the
+            # vehicle down while it was gone was not its failsafe (in windseek's HIL: windseek's safety landing).
+            self.say("LINK: the autopilot restarted while the link was down (its clock went back) and is disarmed: "
+                     "not its failsafe's landing; the vehicle was brought down outside the autopilot (in windseek's "
+                     f"simulation, by windseek's safety landing) ({self._last_seen()})")  # fmt: skip
+            return
         if not st.armed:
             self.say("LINK: the vehicle already landed and disarmed (autopilot failsafe)")
             return

@@ -35,6 +35,8 @@ class VehicleState:
     chem / chem_seq / chem_t: the latest chemical reading (mg/m^3, 0 below the detection limit), how
         many readings have arrived, and the vehicle time of the latest one, s (NaN: not stamped).
     heartbeat_seq: heartbeats received (a fresh one tells the state is current after a link loss).
+    boots: autopilot restarts seen: its boot clock went back (a rebooted autopilot starts disarmed, so
+        a landing during a link loss that spans one was not its failsafe's).
     """
 
     t: float = math.nan
@@ -51,6 +53,7 @@ class VehicleState:
     chem_seq: int = 0
     chem_t: float = math.nan
     heartbeat_seq: int = 0
+    boots: int = 0
 
 
 class Wait(Enum):

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from estimator.ukf import EstimatorConfig
+from review.airborne import judge_airborne
 from review.detect import detect_format
 from review.estimate import EstimatorTrack, run_estimator
 from review.flight import FlightData
@@ -50,6 +51,7 @@ def read_flight(path: Path | str, motor_order: str = "auto", w_max_rad_s: float 
         from review.tlog import read_tlog
 
         fd = read_tlog(path, motor_order, w_max, progress=tick)
+    judge_airborne(fd)
     suffixes = {"tlog": (".tlog",), "ulog": (".ulg", ".ulog"), "dataflash": (".bin",)}[kind]
     if path.suffix.lower() not in suffixes:
         fd.notes.append(f"read as a {kind} by its content (the file name ends in {path.suffix or 'nothing'})")

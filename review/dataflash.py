@@ -13,6 +13,8 @@ Messages (ArduPilot's LogStructure; :mod:`review.df_tables` decodes whole types 
     MSG, MODE             texts and mode changes; the first MSG names the firmware (ArduPlane V3.8.2)
     PARM                  Q_ENABLE (a QuadPlane), FRAME_CLASS (Copter) -> vehicle type
 
+A file that ends inside a message (a truncated log) is read up to it, with a warning, as for a tlog.
+
 Times: TimeUS (boot clock, microseconds) in seconds. Motor order: quad-X (1 FR, 2 RL, 3 FL, 4 RR) as
 for PX4; a QuadPlane's lift motors are outputs 5-8 (RCOU C5..C8), not 1-4: the summary's model line
 says that the implied rotor speeds of such a vehicle are not its lift motors.
@@ -171,6 +173,8 @@ def read_dataflash(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: f
     if T.printed:
         more = f" (and {len(T.printed) - 3} more such lines)" if len(T.printed) > 3 else ""
         fd.warnings.append("pymavlink: " + "; ".join(T.printed[:3]) + more)
+    if T.cut_off():
+        fd.warnings.append("the last message is cut off (a truncated log)")
     mav_type = _identity(fd, T)
     _imu_attitude(fd, T)
     _navigation(fd, T)

@@ -22,6 +22,7 @@ from pymavlink.DFReader import FORMAT_TO_STRUCT, DFReader_binary
 _NP = {"b": "i1", "B": "u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "q": "<i8", "Q": "<u8",
        "f": "<f4", "d": "<f8", "e": "<f2"}  # fmt: skip
 HEADER_BYTES = 3  # HEAD1, HEAD2, message type
+HEAD = b"\xa3\x95"  # HEAD1, HEAD2 of every DataFlash message
 
 
 def _dtype(fmt: Any) -> tuple[np.dtype, list[float | None]] | None:
@@ -66,6 +67,16 @@ class DataFlashTables:
         r = self.reader
         return {f.name: len(r.offsets[tid]) for tid, f in r.formats.items()
                 if tid < len(r.offsets) and len(r.offsets[tid])}  # fmt: skip
+
+    def cut_off(self) -> bool:
+        """True when the file ends inside a message: pymavlink indexes a message whose payload runs past
+        the end of the file (its FMT length), or the bytes after the last message start a header."""
+        r, size = self.reader, len(self._buf)
+        ends = [int(offs[-1]) + r.formats[tid].len for tid, offs in enumerate(r.offsets)
+                if len(offs) and tid in r.formats]  # fmt: skip
+        end = max(ends, default=0)
+        tail = bytes(self._buf[end:end + 2])
+        return end > size or (len(tail) > 0 and HEAD.startswith(tail))
 
     def get(self, name: str) -> dict[str, np.ndarray] | None:
         """All messages of one type as columns (multipliers applied; numbers as float), or None."""

@@ -106,6 +106,7 @@ class FlightData:
         notes: reader remarks (dropped time stamps, undecodable frames, ...).
         warnings: problems with the file itself (corruption, truncation): shown on stderr too.
         imu_notes: remarks on the IMU (rate, units) that bear on the wind figure.
+        not_airborne: why an in-air state was not taken as flight (:mod:`review.airborne`), or "".
         size_bytes: the file's size.
     """
 
@@ -130,6 +131,7 @@ class FlightData:
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     imu_notes: list[str] = field(default_factory=list)
+    not_airborne: str = ""
     size_bytes: int = 0
 
     def all_series(self) -> tuple[Series, ...]:

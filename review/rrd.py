@@ -67,8 +67,8 @@ def time_origin(fd: FlightData, track: EstimatorTrack | None = None) -> float:
     time stamp of anything written (data, events, in-air changes, estimates); 0 for an empty log."""
     firsts = (
         [s.t[0] for s in fd.all_series() if len(s)]
-        + [min(t for t, *_ in fd.texts)] * bool(fd.texts)
-        + [min(t for t, _ in fd.in_air)] * bool(fd.in_air)
+        + ([min(t for t, *_ in fd.texts)] if fd.texts else [])  # min() of nothing raises: no in-air state
+        + ([min(t for t, _ in fd.in_air)] if fd.in_air else [])
         + ([track.t[0]] if track is not None and len(track.t) else [])
     )
     firsts = [float(t) for t in firsts if math.isfinite(float(t))]

@@ -68,8 +68,9 @@ def summarize(fd: FlightData, track: EstimatorTrack | None, trust: Trust | None,
     }  # fmt: skip
     if track is None or trust is None or not len(track.t):
         if "imu" in fd.sources and not segs:
-            s["wind_figure_reason"] = "not airborne: " + (f"{fd.sources['in_air']} never shows the vehicle in the air"
-                                                           if "in_air" in fd.sources else "no in-air state")
+            s["wind_figure_reason"] = "not airborne: " + (
+                fd.not_airborne or (f"{fd.sources['in_air']} never shows the vehicle in the air"
+                                    if "in_air" in fd.sources else "no in-air state"))  # fmt: skip
         elif not s["wind_estimated"]:
             s["wind_figure_reason"] = "wind not estimated (inputs missing)"
         return s

@@ -4,7 +4,8 @@ pyulog loads only the topics the review uses (:data:`TOPICS`) into numpy columns
 converted in :mod:`review.ulog_topics`. pyulog reads the whole file at once (no streaming), at about
 10-20 MB/s here. It prints its complaints about a damaged file ("File corruption detected ...") to
 stdout: they are captured and reported as :attr:`FlightData.warnings` (stderr of ``windseek review``),
-so that ``--json`` output stays JSON.
+so that ``--json`` output stays JSON. A file cut inside a message (a truncated log), which pyulog reads up
+to the cut without a word, gets a warning too (:func:`is_cut_off`), as for a tlog.
 
 In-air state: ``vehicle_land_detected.landed``; without a land detector, arming
 (``vehicle_status.arming_state``); without either, the vehicle counts as never airborne.
@@ -14,6 +15,8 @@ from __future__ import annotations
 
 import contextlib
 import io
+import mmap
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +94,22 @@ def open_ulog(path: Path) -> tuple[ULog, list[str]]:
     return ulog, [line.strip() for line in out.getvalue().splitlines() if line.strip()]
 
 
+#: ULog file header: magic (7 bytes), version (1), timestamp (8); then messages of [uint16 size][uint8 type][payload].
+ULOG_HEADER_BYTES, MSG_HEADER_BYTES = 16, 3
+
+
+def is_cut_off(path: Path) -> bool:
+    """True when the file ends inside a message (a truncated log: the last message's header or payload
+    runs past the end). pyulog stops there without a word ("File is most likely cut"), so the message
+    headers are walked here; only meaningful on a file pyulog found undamaged (a corrupt stretch
+    desynchronizes the walk)."""
+    with path.open("rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
+        size, pos = len(m), ULOG_HEADER_BYTES
+        while pos + MSG_HEADER_BYTES <= size:
+            pos += MSG_HEADER_BYTES + struct.unpack_from("<H", m, pos)[0]
+        return pos != size
+
+
 def _identity(fd: FlightData, ulog: ULog, data: dict[str, ut.Topic]) -> None:
     """Autopilot name and version (``ver_sw_release`` decoded, else the git hash), and the vehicle type."""
     info = ulog.msg_info_dict
@@ -116,6 +135,8 @@ def _file_notes(fd: FlightData, ulog: ULog, printed: list[str]) -> None:
         lines = list(dict.fromkeys(printed))
         what = "; ".join(lines[:3]) + (f" (and {len(lines) - 3} more)" if len(lines) > 3 else "") or "file corruption"
         fd.warnings.append(f"pyulog: {what}: data after the damage may be missing")
+    elif is_cut_off(Path(fd.path)):
+        fd.warnings.append("the last message is cut off (a truncated log)")
     if ulog.dropouts:
         fd.notes.append(f"{len(ulog.dropouts)} logger dropout(s), {sum(d.duration for d in ulog.dropouts)} ms in all")
 
@@ -169,4 +190,4 @@ def read_ulog(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float 
     return fd
 
 
-__all__ = ["TOPICS", "open_ulog", "read_ulog"]
+__all__ = ["TOPICS", "is_cut_off", "open_ulog", "read_ulog"]

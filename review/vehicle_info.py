@@ -17,6 +17,8 @@ from wire.dialect import mavlink
 _VERSION_TYPES = ((255, ""), (192, "rc"), (128, "beta"), (64, "alpha"), (0, "dev"))
 #: MAV_TYPE values of multirotors with four rotors (the paper's model has four).
 QUADROTOR_TYPES = frozenset({mavlink.MAV_TYPE_QUADROTOR})
+#: Vehicle types (the words of :func:`mav_type_name`, PX4's and the DataFlash reader's) that never fly.
+NON_FLYING_TYPES = frozenset({"submarine", "ground rover", "surface boat", "rover", "antenna tracker"})
 #: PX4 vehicle_status.vehicle_type (VEHICLE_TYPE_*) -> words.
 PX4_VEHICLE_TYPES = {0: "unknown", 1: "multicopter", 2: "fixed wing", 3: "rover", 4: "airship"}
 
@@ -45,8 +47,48 @@ def mav_type_name(mav_type: int) -> str:
     return words.replace("vtol", "VTOL")
 
 
+#: (word in the vehicle type, what the vehicle is, what the quadrotor force model leaves out for it); the
+#: first match counts, so "VTOL (fixed wing)" and "VTOL QuadPlane (fixed wing with lift motors)" are VTOLs.
+_NOT_MODELLED = (
+    ("vtol", "VTOL", "its wing lift and drag in forward flight, its transitions and its tilt or pusher motors"),
+    ("submarine", "submarine", "buoyancy, water drag and thrusters pushing in every direction"),
+    ("boat", "surface boat", "buoyancy, hull drag and a water propeller"),
+    ("rover", "ground rover", "wheels on the ground carrying its weight"),
+    ("coaxial", "coaxial helicopter", "two counter-rotating main rotors with collective and cyclic pitch"),
+    ("helicopter", "helicopter", "one main rotor with collective and cyclic pitch, and a tail rotor"),
+    ("wing", "fixed wing", "its wing lift and drag, control surfaces and forward motor"),
+    ("airship", "airship", "buoyancy carrying its weight, and its hull drag"),
+    ("balloon", "balloon", "buoyancy carrying its weight"),
+)  # fmt: skip
+#: Words of multirotors that do not have the model's four rotors (hexa-, octo-, tri-, Y6, octa-quad, ...).
+_MULTIROTOR_WORDS = ("rotor", "copter", "y6", "octa", "hexa")
+
+
+def _article(noun: str) -> str:
+    return ("an " if noun[:1].lower() in "aeiou" else "a ") + noun
+
+
+def _what_it_is(vehicle_type: str) -> tuple[str, str]:
+    """(what the vehicle is, in words with its type, what the quadrotor model lacks for it) for a vehicle
+    that is not a quadrotor: ``"submarine"`` -> ``("a submarine, which does not fly", "buoyancy, ...")``."""
+    kind = vehicle_type.lower()
+    noun, missing = vehicle_type, "its own means of lift"
+    for word, n, m in _NOT_MODELLED:
+        if word in kind:
+            noun, missing = n, m
+            break
+    else:
+        if any(w in kind for w in _MULTIROTOR_WORDS):
+            noun, missing = "multirotor", "its rotors beyond the four of a quad-X, its mass and its drag"
+    what = _article(vehicle_type if noun.lower() in kind else f"{noun} ({vehicle_type})")
+    return what + (", which does not fly" if kind in NON_FLYING_TYPES else ""), missing
+
+
 def model_caveat(vehicle_type: str, vehicle_file: str, simulated: bool = False) -> str:
-    """One sentence: what the re-run's wind means for this vehicle, given the force model's vehicle file."""
+    """One sentence: what the re-run's wind means for this vehicle, given the force model's vehicle file.
+
+    The vehicle is named from its type (MAV_TYPE words, PX4's vehicle type or the DataFlash firmware):
+    a fixed wing, a submarine, a rover, a boat, a helicopter, a hexa- or octorotor, a VTOL, ..."""
     if simulated:
         return f"model: the log is from windseek's own SITL; the force model is the vehicle file's ({vehicle_file})"
     kind = vehicle_type.lower()
@@ -57,9 +99,10 @@ def model_caveat(vehicle_type: str, vehicle_file: str, simulated: bool = False) 
                 "so the wind figure is biased by the model error (use --vehicle with this airframe's model)")
     if kind == "unknown":
         return base + "; the log does not say what the vehicle is: the figure holds only if it is that airframe"
-    return (base + f"; this log's vehicle is a {vehicle_type}, not a quadrotor: its wing lift and drag, control "
-            "surfaces and forward motor are not in the model and the actuator outputs may not be lift motors, "
-            "so the figure is not a wind measurement (only the autopilot's own estimate, where logged, is)")
+    what, missing = _what_it_is(vehicle_type)
+    return (base + f"; this log's vehicle is {what}, not a quadrotor: the model has none of {missing}, and the "
+            "actuator outputs may not be lift motors, so the figure is not a wind measurement (only the "
+            "autopilot's own estimate, where logged, is)")
 
 
-__all__ = ["PX4_VEHICLE_TYPES", "QUADROTOR_TYPES", "mav_type_name", "model_caveat", "sw_version"]
+__all__ = ["NON_FLYING_TYPES", "PX4_VEHICLE_TYPES", "QUADROTOR_TYPES", "mav_type_name", "model_caveat", "sw_version"]

@@ -82,3 +82,15 @@ def test_a_subcommand_imports_only_its_own_module():
     assert listed == ["sim", "search", "campaign", "estimate", "identify", "sitl", "mission", "review", "estimator",
                       "demo",
                       "link-proxy"], full.stdout
+
+
+def test_mission_line_without_a_declaration_says_so() -> None:
+    """A mission that declared nothing (time to the declaration NaN) used to print "time nan s"."""
+    from mission.result import MissionResult
+    from windseek.cmd_mission import result_line
+
+    res = MissionResult(strategy="surge-cast", wind="mavlink", cause="search-ended", path_m=42.0)
+    line = result_line(res)
+    assert "nan" not in line.lower() and "declared source none (confidence 0.00); time: no declaration;" in line
+    res.declared_ned, res.time_s, res.credible_radius_m = [3.0, -4.0, -5.0], 61.25, 2.5
+    assert "N 3.0 E -4.0 D -5.0 m, 90 % within 2.5 m (confidence 0.00); time 61.2 s;" in result_line(res)

@@ -7,6 +7,8 @@
   values by cast, so an INT32 parameter reads as a denormal float and its set is refused with
   PARAM_ERROR TYPE_MISMATCH, exactly as against PX4.
 - ``simple_takeoff(5)`` is 5 m AMSL: accepted, no climb, PX4's STATUSTEXT; an AMSL altitude climbs.
+- ``simple_goto`` (a MISSION_ITEM with current = 2, ArduPilot's guided goto): refused with a STATUSTEXT
+  saying so, as PX4 explains its mission refusals.
 
 dronekit 2.9.2 needs two shims on Python 3.10+: ``collections.MutableMapping`` (moved to
 ``collections.abc``) and the ``future`` package (``past.builtins``); both are test-only.
@@ -63,6 +65,11 @@ def test_dronekit_version_params_takeoff() -> None:
             assert link.sim.fc.on_ground and link.sim.fc.mode == Mode.HOLD
             v.simple_takeoff(link.home_amsl() + 2.0)
             wait_until(lambda: -link.sim.position[2] > 1.5, 30.0, "climb to 2 m")
+            # simple_goto is ArduPilot's guided goto (MISSION_ITEM current = 2), which PX4 has not: refused,
+            # and the refusal says why (it used to be a bare MISSION_ACK DENIED).
+            v.simple_goto(dronekit.LocationGlobalRelative(v.location.global_frame.lat, v.location.global_frame.lon, 3))
+            wait_until(lambda: any("Goto (current=2) unsupported, use DO_REPOSITION" in t for t in texts), 10.0,
+                       "the goto refusal's reason")  # fmt: skip
             time.sleep(0.2)
             assert link.counters["handler_errors"] == 0
         finally:

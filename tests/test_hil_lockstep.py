@@ -164,3 +164,22 @@ def test_garbage_from_px4_is_counted_and_dropped() -> None:
         px4.close()
     assert runner.link.counters["rx_bad"] >= 2
     assert runner.counters["lockstep_timeouts"] == 0
+
+
+def test_lockstep_speed_is_the_realised_pace_not_the_step_throughput() -> None:
+    """At a requested pace (``--speed``) the summary's ``lockstep_speed`` is the pace the run went at; it used
+    to be the steps' throughput (world step + PX4's answer, without the pacing sleep), e.g. "lockstep speed
+    12" at --speed 1. The throughput is reported apart, as what --px4-free would allow."""
+    b, said = bridge()
+    with serving(b, said, options=HilOptions(speed=0.5, answer_timeout_s=2.0)) as runner:
+        px4 = FakePx4(runner.link.port, policy=Policy())  # type: ignore[attr-defined]
+        wait_for(lambda: runner.state == Sync.LOCKSTEP, what="lockstep")
+        t0 = b.world.t
+        wait_for(lambda: b.world.t > t0 + 1.0, what="1 s of simulation (2 s of wall at speed 0.5)")
+        px4.close()
+    s = runner.summary()
+    assert 0.4 < s["lockstep_speed"] <= 0.52, s["lockstep_speed"]  # the pace asked for, as realised
+    assert s["requested_speed"] == 0.5
+    assert s["lockstep_throughput"] > 1.0, s["lockstep_throughput"]  # the fake PX4 answers far faster than that
+    line = runner.speed_line()
+    assert line.startswith(f"lockstep speed {s['lockstep_speed']:.2f}x (requested 0.5x; the steps alone would allow ")

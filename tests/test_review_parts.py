@@ -49,6 +49,25 @@ def test_versions_and_vehicle_words() -> None:
     assert "not that airframe" in model_caveat("quadrotor", "nasa-quad")
 
 
+@pytest.mark.parametrize(("mav_type", "says", "not_says"), [
+    (12, "vehicle is a submarine, which does not fly, not a quadrotor: the model has none of buoyancy", "wing"),
+    (10, "vehicle is a ground rover, which does not fly", "wing"),
+    (11, "vehicle is a surface boat, which does not fly", "wing"),
+    (4, "vehicle is a helicopter, not a quadrotor: the model has none of one main rotor", "wing"),
+    (13, "vehicle is a multirotor (hexarotor), not a quadrotor: the model has none of its rotors beyond", "wing"),
+    (14, "vehicle is a multirotor (octorotor)", "wing"),
+    (22, "vehicle is a VTOL fixedrotor, not a quadrotor: the model has none of its wing lift and drag in forward",
+     "control surfaces"),
+    (1, "vehicle is a fixed wing, not a quadrotor: the model has none of its wing lift and drag, control surfaces",
+     "does not fly"),
+])  # fmt: skip
+def test_model_caveat_says_what_the_vehicle_is(mav_type: int, says: str, not_says: str) -> None:
+    """The caveat for a vehicle that is not a quadrotor names it from its MAV_TYPE; it used to describe
+    a fixed wing's "wing lift and drag, control surfaces and forward motor" for every type."""
+    text = model_caveat(mav_type_name(mav_type), "nasa-quad")
+    assert says in text and not_says not in text, text
+
+
 def test_review_does_not_import_the_simulator() -> None:
     code = ("import sys, review, review.tlog, review.ulog, review.dataflash, review.convert; "
             "bad = sorted(m for m in sys.modules if m == 'sitl' or m.startswith(('sitl.', 'mission'))); "

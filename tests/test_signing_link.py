@@ -263,12 +263,19 @@ def test_cli_key_never_in_tlog_summary_or_output(tmp_path: Path) -> None:
         gcs.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 4)
         Hostile(_sitl_port(gcs)).send(
             M.MAVLink_command_long_message(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0))
+        # A pymavlink client without MAVLINK20=1 but with the key "signs" MAVLink 1 frames (13 bytes appended):
+        # 3 commands and 2 heartbeats, counted as MAVLink 1 while signing is on, not as bad bytes.
+        v1 = subprocess.run([sys.executable, "-c", V1_CLIENT, str(_sitl_port(gcs)), KEY.secret.hex()],
+                            env={k: v for k, v in os.environ.items() if k != "MAVLINK20"}, capture_output=True,
+                            text=True, timeout=60)  # fmt: skip
+        assert v1.returncode == 0 and v1.stdout.split() == ["v10", "54", "30"], v1.stdout + v1.stderr
         time.sleep(1.0)
     finally:
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     assert "signing on" in out and "unauthenticated dropped" in err
+    assert "(0 bad, " in err and ", 5 MAVLink 1 while signing is on)" in err, err
     data = tlog.read_bytes()
     for secret in (KEY.secret, OTHER.secret):
         assert secret not in data and secret.hex() not in out + err + summary.read_text()
@@ -279,6 +286,23 @@ def test_cli_key_never_in_tlog_summary_or_output(tmp_path: Path) -> None:
     assert signing.SETUP_SIGNING_ID not in ids and 0 in ids
     s = json.loads(summary.read_text())
     assert s["signing"]["rx_unauthenticated"] >= 1 and s["signing"]["signed_ok"] >= 1
+    assert s["signing"]["rx_mavlink1_signing"] == 5
+
+
+#: A ground station's script that forgot MAVLINK20=1: pymavlink's MAVLink 1 dialect with signing set up.
+V1_CLIENT = """
+import sys
+from pymavlink import mavutil
+conn = mavutil.mavlink_connection("udpout:127.0.0.1:" + sys.argv[1], source_system=254, dialect="common")
+conn.setup_signing(bytes.fromhex(sys.argv[2]), sign_outgoing=True)
+cmd = conn.mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+hb = conn.mav.heartbeat_encode(6, 8, 0, 0, 0)
+print(conn.mav.__module__.split(".")[-2], len(cmd.pack(conn.mav)), len(hb.pack(conn.mav)))
+for _ in range(3):
+    conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+for _ in range(2):
+    conn.mav.heartbeat_send(6, 8, 0, 0, 0)
+"""
 
 
 def _sitl_port(conn: Any) -> int:

@@ -15,10 +15,14 @@ import json
 import math
 import sys
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from mission.safety import SafetyLimits
 from mission.strategies import STRATEGIES
 from mission.wind_modes import LIVE_WIND_MODES
+
+if TYPE_CHECKING:
+    from mission.result import MissionResult
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -68,6 +72,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def result_line(res: MissionResult) -> str:
+    """The mission's one-line outcome: cause, declared source (m NED), time from arming to the declaration
+    (s; "no declaration" without one, where the time would be NaN), path (m), final state."""
+    d = res.declared_ned
+    where = f"N {d[0]:.1f} E {d[1]:.1f} D {d[2]:.1f} m" if d else "none"
+    if d and math.isfinite(res.credible_radius_m):
+        where += f", 90 % within {res.credible_radius_m:.1f} m"
+    when = f"time {res.time_s:.1f} s" if math.isfinite(res.time_s) else "time: no declaration"
+    return (f"{res.strategy} with {res.wind} wind: cause {res.cause}; declared source {where} "
+            f"(confidence {res.confidence:.2f}); {when}; path {res.path_m:.1f} m; "
+            f"landed {res.landed}, disarmed {res.disarmed}")  # fmt: skip
+
+
 def run(args: argparse.Namespace) -> int:
     from mission.runners.mavsdk_runner import MissionConfig, run_mission
     from mission.strategies.params import load_params
@@ -108,13 +125,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(res.to_dict(), allow_nan=False))
     else:
-        d = res.declared_ned
-        where = f"N {d[0]:.1f} E {d[1]:.1f} D {d[2]:.1f} m" if d else "none"
-        if d and math.isfinite(res.credible_radius_m):
-            where += f", 90 % within {res.credible_radius_m:.1f} m"
-        print(f"{res.strategy} with {res.wind} wind: cause {res.cause}; declared source {where} "
-              f"(confidence {res.confidence:.2f}); time {res.time_s:.1f} s; path {res.path_m:.1f} m; "
-              f"landed {res.landed}, disarmed {res.disarmed}")
+        print(result_line(res))
         for r in res.reasons:
             print(f"  {r}")
     return 0 if res.cause == "declared" and res.disarmed else 1

@@ -226,7 +226,8 @@ def run(args: argparse.Namespace) -> int:
         for s, h in old.items():
             signal.signal(s, h)
     c = link.counters
-    rejected = f", {c['rx_unauthenticated']} unauthenticated dropped" if link.endpoint.signing_on else ""
+    rejected = (f", {c['rx_unauthenticated']} unauthenticated dropped, {c['rx_mavlink1_signing']} MAVLink 1 while "
+                "signing is on" if link.endpoint.signing_on else "")  # fmt: skip
     print(f"windseek sitl: stopped at t = {link.sim.t:.2f} s; rx {c['rx_messages']} msgs "
           f"({c['rx_bad']} bad{rejected}), tx {c['tx_messages']} msgs", file=sys.stderr, flush=True)
     return 0

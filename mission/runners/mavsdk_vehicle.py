@@ -120,6 +120,9 @@ class MavsdkVehicle:
         return self
 
     async def __aexit__(self, *exc: object) -> None:
+        if (n := self.counters["clock_resets"]) > 1:
+            twice = f": two vehicles' streams under system {self.target[0]}?" if n > 2 and self.target else ""
+            self.say(f"mission: the vehicle clock went back {n} times in all (said at the first only){twice}")
         if self._publisher is not None:
             self._publisher.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
@@ -208,7 +211,10 @@ class MavsdkVehicle:
         if "time_boot_ms" in f and t > 0.0:
             if t < st.t - CLOCK_RESET_S:
                 self.counters["clock_resets"] += 1
-                self.say(f"mission: the vehicle clock went back from {st.t:.1f} s to {t:.1f} s (reboot?)")
+                st.boots += 1
+                if self.counters["clock_resets"] == 1:  # once: two vehicles' streams would say it per message
+                    self.say(f"mission: the vehicle clock went back from {st.t:.1f} s to {t:.1f} s (reboot?); "
+                             "any further jumps are counted and reported at the end")  # fmt: skip
                 st.t = t
             elif not t < st.t or math.isnan(st.t):
                 st.t = t

@@ -9,7 +9,8 @@
 - ``--speed K``: simulated seconds per wall second in lockstep; ``--px4-free``: as fast as PX4 answers.
 - ``--px4-timeout S``: wall seconds to wait for a lockstep answer (then it steps on, counted).
 - ``--exit-summary PATH``: the runner's summary as JSON at shutdown (wind RMSE of the forwarded
-  WIND_COV, the declaration, counters, lockstep speed); ``--tlog PATH``: every frame both links
+  WIND_COV, the declaration, counters, the lockstep speed realised against the requested pace and the
+  steps' throughput); ``--tlog PATH``: every frame both links
   carried.
 """
 
@@ -102,7 +103,7 @@ def run_px4(args: argparse.Namespace) -> int:
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_text(json.dumps(d, indent=1, allow_nan=False) + "\n")
     say(f"stopped at t = {b.t:.2f} s ({runner.state.value}); {d.get('answers', 0)} PX4 answers, "
-        f"{d.get('lockstep_timeouts', 0)} lockstep timeouts, lockstep speed {d.get('lockstep_speed')}")
+        f"{d.get('lockstep_timeouts', 0)} lockstep timeouts, {runner.speed_line()}")
     return 0
 
 

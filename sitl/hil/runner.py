@@ -88,7 +88,10 @@ class HilRunner:
         self.answered_us = 0
         self.px4_system: int | None = None
         self.lockstep_sim_s = 0.0
+        #: Wall seconds of lockstep steps: the world step and PX4's answer (throughput), and with the pacing
+        #: sleep too (the pace the run actually went at: at --speed 1 about 1 s per simulated s).
         self.lockstep_wall_s = 0.0
+        self.lockstep_paced_wall_s = 0.0
         #: Wall seconds of lockstep spent in windseek (world step, messages, sending) and waiting for PX4.
         self.world_wall_s = 0.0
         self.px4_wall_s = 0.0
@@ -185,6 +188,7 @@ class HilRunner:
             self.link.accept(0.0)  # a restarted PX4: the new connection replaces the old one
             self._connected()
         self._pace()
+        self.lockstep_paced_wall_s += time.monotonic() - w0
 
     def _await(self, t_us: int) -> None:
         deadline = time.monotonic() + self.options.answer_timeout_s
@@ -303,12 +307,29 @@ class HilRunner:
             self.bridge.truth.on_message(m)
 
     # ------------------------------------------------------------------ results
+    def speed_line(self) -> str:
+        """The lockstep pace in words: realised against requested, and the steps' throughput."""
+        d = self.summary()
+        if d["lockstep_speed"] is None:
+            return "no lockstep"
+        asked = "as fast as PX4 answers" if self.options.speed <= 0 else f"requested {self.options.speed:g}x"
+        return (f"lockstep speed {d['lockstep_speed']:.2f}x ({asked}; the steps alone would allow "
+                f"{d['lockstep_throughput']:.2f}x)")
+
     def summary(self) -> dict[str, Any]:
-        """The bridge's figures, the sync state, the lockstep speed and every counter."""
+        """The bridge's figures, the sync state, the lockstep speeds and every counter.
+
+        ``lockstep_speed``: simulated s per wall s the lockstep run went at (pacing included: about the
+        requested ``speed`` when the steps keep up); ``lockstep_throughput``: the same over the steps' own
+        time (world step + PX4's answer, no pacing sleep): how fast it could go (``--px4-free``);
+        ``requested_speed``: the pace asked for (0: as fast as PX4 answers). None before any lockstep."""
         d = self.bridge.summary()
         d["sync"] = self.state.value
         d["px4_system_id"] = self.px4_system
-        d["lockstep_speed"] = round(self.lockstep_sim_s / self.lockstep_wall_s, 3) if self.lockstep_wall_s else None
+        sim, paced, busy = self.lockstep_sim_s, self.lockstep_paced_wall_s, self.lockstep_wall_s
+        d["lockstep_speed"] = round(sim / paced, 3) if paced else None
+        d["lockstep_throughput"] = round(sim / busy, 3) if busy else None
+        d["requested_speed"] = self.options.speed
         d["steps"] = self.bridge.steps
         n = max(1, round(self.lockstep_sim_s / self.bridge.imu_period_s))
         d["lockstep_us_per_step_windseek"] = round(1e6 * self.world_wall_s / n, 1)

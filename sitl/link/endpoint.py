@@ -10,7 +10,11 @@ and never stops the endpoint.
 With a signing key (:mod:`wire.signing`) every frame sent is signed and every frame received must
 be signed with the key: an unsigned or wrongly signed frame (bad signature, replayed or stale time
 stamp) is dropped before any handler, hook, forwarder or log sees it, and counted
-(``rx_unauthenticated``), except PX4's unsigned allowlist. SETUP_SIGNING is never acted on,
+(``rx_unauthenticated``), except PX4's unsigned allowlist. A MAVLink 1 frame cannot carry a signature:
+pymavlink without ``MAVLINK20=1`` still "signs" one by appending the 13 signature bytes, which no
+MAVLink 1 parser expects and no verifier can accept; such frames are counted apart
+(``rx_mavlink1_signing``, "MAVLink 1 while signing is on"), their appended bytes with them, not as
+bad bytes or forgeries. SETUP_SIGNING is never acted on,
 forwarded or logged (it carries a key). A UDP sender is learned as a peer only from a datagram
 with a valid (authenticated, when signing) frame.
 """
@@ -33,6 +37,8 @@ log = logging.getLogger(__name__)
 
 SYSTEM_ID = 1
 COMPONENT_ID = 1  # MAV_COMP_ID_AUTOPILOT1
+MAVLINK1_MAGIC = 0xFE  # a MAVLink 1 frame's start byte (MAVLink 2: 0xFD)
+SIGNATURE_LEN = 13  # MAVLink 2 signature: link id, 6-byte time stamp, 6-byte signature
 
 Handler = Callable[[object, "Link"], None]
 
@@ -47,6 +53,8 @@ class Link:
         #: Sender address of the datagram being parsed (UDP; None on byte streams): for replies and forwarding.
         self.rx_source: tuple[str, int] | None = None
         self.rx_valid = False  # the datagram being parsed held a valid (authenticated) frame
+        #: Bytes still expected of the signature a MAVLink 1 sender appended to its last frame (0: none).
+        self.v1_signature_left = 0
 
     @property
     def name(self) -> str:
@@ -170,13 +178,16 @@ class Endpoint:
 
     def _end_of_datagram(self, lk: Link) -> None:
         p = lk.parser
-        if p.buf_len() > 0:
+        if 0 < p.buf_len() <= lk.v1_signature_left:
+            pass  # a MAVLink 1 frame's appended signature that happened to start like a frame
+        elif p.buf_len() > 0:
             self.counters["rx_bad"] += 1
             self.counters["rx_truncated"] += 1
         p.buf = bytearray()
         p.buf_index = 0
         p.expected_length = mavlink.HEADER_LEN_V1 + 2
         p.have_prefix_error = False
+        lk.v1_signature_left = 0
 
     def feed(self, lk: Link, data: bytes) -> int:
         """Parse bytes that arrived on a link and dispatch the messages."""
@@ -191,6 +202,8 @@ class Endpoint:
         handled = 0
         for msg in msgs:
             mtype = msg.get_type()
+            if self.signing_on and self._mavlink1(lk, msg, mtype):
+                continue
             if mtype == "BAD_DATA":
                 reason = str(getattr(msg, "reason", ""))
                 if "Invalid signature" in reason:
@@ -230,6 +243,22 @@ class Endpoint:
                 log.warning("handler for %s failed", mtype, exc_info=True)
                 self.counters["handler_errors"] += 1
         return handled
+
+    def _mavlink1(self, lk: Link, msg: Any, mtype: str) -> bool:
+        """With signing on: count a MAVLink 1 frame (and the signature bytes its sender appended) as
+        "MAVLink 1 while signing is on"; True when ``msg`` is dropped here (an allowlisted MAVLink 1
+        HEARTBEAT is counted and still handled, as PX4 accepts it unsigned)."""
+        data = bytes((getattr(msg, "data", b"") if mtype == "BAD_DATA" else msg.get_msgbuf()) or b"")
+        reason = str(getattr(msg, "reason", ""))
+        if mtype == "BAD_DATA" and reason.startswith("Bad prefix") and 0 < len(data) <= lk.v1_signature_left:
+            lk.v1_signature_left -= len(data)
+            return True
+        lk.v1_signature_left = 0
+        if not data or data[0] != MAVLINK1_MAGIC or (mtype == "BAD_DATA" and "Invalid signature" not in reason):
+            return False  # a MAVLink 2 frame, or a broken MAVLink 1 one (bad CRC: counted as bad as ever)
+        self.counters["rx_mavlink1_signing"] += 1
+        lk.v1_signature_left = SIGNATURE_LEN
+        return mtype == "BAD_DATA"
 
     def close(self) -> None:
         for lk in self.links:

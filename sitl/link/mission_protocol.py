@@ -13,7 +13,11 @@ DO_CHANGE_SPEED (param2 m/s), NAV_DELAY (param1 s, waits where the vehicle is), 
 Frames GLOBAL(_INT) (AMSL) and GLOBAL_RELATIVE_ALT(_INT)
 (above home); DO items also MISSION. Geofence items: NAV_FENCE_POLYGON_VERTEX_INCLUSION /
 EXCLUSION (param1 vertex count), NAV_FENCE_CIRCLE_INCLUSION / EXCLUSION (param1 radius m),
-NAV_FENCE_RETURN_POINT (stored, not used). Errors use the MAV_MISSION_RESULT codes.
+NAV_FENCE_RETURN_POINT (stored, not used). Errors use the MAV_MISSION_RESULT codes, and every
+MISSION_ACK that is not ACCEPTED follows a STATUSTEXT (severity CRITICAL) saying why, as PX4's mission
+manager does ("IGN MISSION_ITEM: No transfer", ...). A guided goto (a MISSION_ITEM with current = 2,
+dronekit's ``simple_goto``) is ArduPilot's; PX4 answers it as an item without a transfer, and so
+does this link, naming MAV_CMD_DO_REPOSITION, PX4's way to fly to a point.
 """
 
 from __future__ import annotations
@@ -104,7 +108,11 @@ class MissionProtocol:
             self.ep.handlers[name] = getattr(self, "on_" + name.lower())
 
     # ------------------------------------------------------------------ helpers
-    def _ack(self, link: Link, msg: Any, code: int, mission_type: int) -> None:
+    def _ack(self, link: Link, msg: Any, code: int, mission_type: int, why: str = "") -> None:
+        """MISSION_ACK ``code`` to the sender; a refusal comes after a STATUSTEXT with ``why`` (<= 50 chars)."""
+        if code != mav.MAV_MISSION_ACCEPTED:
+            text = why or f"Mission refused: result {code}"
+            self.ep.reply(mav.MAVLink_statustext_message(mav.MAV_SEVERITY_CRITICAL, text.encode()[:50]), link)
         self.ep.reply(
             mav.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), code, mission_type), link
         )
@@ -124,9 +132,10 @@ class MissionProtocol:
         if tr is None or time.monotonic() < tr.deadline:
             return
         if tr.retries >= REQUEST_RETRIES:
-            self.ep.reply(
+            self.ep.reply_many([
+                mav.MAVLink_statustext_message(mav.MAV_SEVERITY_CRITICAL, b"Operation timeout"),  # PX4's words
                 mav.MAVLink_mission_ack_message(tr.sysid, tr.compid, mav.MAV_MISSION_OPERATION_CANCELLED,
-                                              tr.mission_type), tr.link, tr.addr)  # fmt: skip
+                                              tr.mission_type)], tr.link, tr.addr)  # fmt: skip
             self.ep.counters["mission_timeouts"] += 1
             self.transfer = None
             return
@@ -139,10 +148,10 @@ class MissionProtocol:
             return
         mtype = getattr(msg, "mission_type", MISSION)
         if mtype not in (MISSION, FENCE):
-            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype, f"Mission type {mtype} not supported")
             return
         if msg.count > MAX_ITEMS:
-            self._ack(link, msg, mav.MAV_MISSION_NO_SPACE, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_NO_SPACE, mtype, f"Mission too large: {msg.count} > {MAX_ITEMS}")
             return
         if msg.count == 0:
             self._install(mtype, [])
@@ -167,8 +176,10 @@ class MissionProtocol:
         if tr is None or tr.link is not link or tr.addr != link.rx_source or tr.mission_type != mtype:
             if self._last_done == (link.index, link.rx_source, mtype, msg.seq + 1):
                 self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype)  # our final ACK was lost
+            elif getattr(msg, "current", 0) == 2:  # ArduPilot's guided goto: PX4 has no such item
+                self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype, "Goto (current=2) unsupported, use DO_REPOSITION")
             else:
-                self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype)
+                self._ack(link, msg, mav.MAV_MISSION_DENIED, mtype, "IGN MISSION_ITEM: No transfer")
             return
         if msg.seq < tr.next_seq:
             # A duplicate (the link doubled it, or the sender resent it): ignored, as PX4 does. Asking
@@ -177,15 +188,15 @@ class MissionProtocol:
             self.ep.counters["mission_duplicates"] += 1
             return
         if msg.seq > tr.next_seq:
-            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype,
+                      f"Unexpected waypoint index {msg.seq}, aborting")  # fmt: skip
             self.transfer = None
             return
         item = _normalise(msg, as_int)
         try:
             self._validate(item, mtype)
         except ItemError as e:
-            self.ap.fc.say(f"Mission item {msg.seq} rejected: {e}", 4)
-            self._ack(link, msg, e.code, mtype)
+            self._ack(link, msg, e.code, mtype, f"Mission item {msg.seq} rejected: {e}")
             self.transfer = None
             return
         tr.items.append(item)
@@ -197,7 +208,7 @@ class MissionProtocol:
         try:
             self._install(mtype, tr.items)
         except ItemError as e:
-            self._ack(link, msg, e.code, mtype)
+            self._ack(link, msg, e.code, mtype, f"Mission rejected: {e}")
             self.transfer = None
             return
         self.transfer = None
@@ -328,7 +339,7 @@ class MissionProtocol:
             return
         mtype = getattr(msg, "mission_type", MISSION)
         if mtype not in (MISSION, FENCE):
-            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype, f"Mission type {mtype} not supported")
             return
         self.ep.reply(
             mav.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), len(self.plans[mtype]),
@@ -340,10 +351,11 @@ class MissionProtocol:
         mtype = getattr(msg, "mission_type", MISSION)
         plan = self.plans.get(mtype)
         if plan is None:
-            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype, f"Mission type {mtype} not supported")
             return
         if not 0 <= msg.seq < len(plan):
-            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, mtype,
+                      f"Requested item {msg.seq} out of bounds ({len(plan)})")  # fmt: skip
             return
         it = plan[msg.seq]
         fc = self.ap.fc
@@ -371,7 +383,7 @@ class MissionProtocol:
             self._install(mtype, [])
             mtype_ack = mtype
         else:
-            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype)
+            self._ack(link, msg, mav.MAV_MISSION_UNSUPPORTED, mtype, f"Mission type {mtype} not supported")
             return
         self._ack(link, msg, mav.MAV_MISSION_ACCEPTED, mtype_ack)
 
@@ -380,7 +392,8 @@ class MissionProtocol:
             return
         fc = self.ap.fc
         if not 0 <= msg.seq < len(fc.mission):
-            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, MISSION)
+            self._ack(link, msg, mav.MAV_MISSION_INVALID_SEQUENCE, MISSION,
+                      f"Set current {msg.seq} out of bounds ({len(fc.mission)})")  # fmt: skip
             return
         if fc.mode == Mode.MISSION and fc.armed:
             fc.start_mission(msg.seq)

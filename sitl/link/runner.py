@@ -96,7 +96,7 @@ class SitlLink:
         self._thread: threading.Thread | None = None
         self._wall0 = 0.0
         self._sim0 = 0.0
-        self._last_mode = (sim.fc.mode, sim.fc.armed)
+        self._last_mode = (self.telemetry.reported_mode(), sim.fc.armed)
         self._last_index = sim.fc.mission_index
         self.chunks = 0
         self.lag_max_s = 0.0
@@ -164,11 +164,6 @@ class SitlLink:
         tel.ingest(samples)
         tel.update_battery()
         out = self.streams.due(sim.t, samples)
-        state = (fc.mode, fc.armed)
-        if state != self._last_mode:
-            # An extra HEARTBEAT on a mode or arming change lets clients see it at once.
-            self._last_mode = state
-            out.extend(tel.heartbeat())
         if fc.events:
             for ev in fc.events:
                 out.append(mav.MAVLink_statustext_message(ev.severity, ev.text.encode()[:50]))
@@ -190,6 +185,15 @@ class SitlLink:
                 out.append(mav.MAVLink_mission_item_reached_message(i))
             fc.mission_reached.clear()
         out.extend(tel.mission_landing_step())
+        # An extra HEARTBEAT on a change of the mode on the wire or of arming lets clients see it at once.
+        # Judged after the mission-landing bookkeeping above: a mission's LAND item switches the built-in
+        # autopilot to LAND in this chunk, but PX4 flies it in AUTO.MISSION (MissionBase handles
+        # NAV_CMD_LAND itself), so the wire stays in MISSION; a HEARTBEAT built before would say
+        # AUTO.LAND once and AUTO.MISSION 70 ms later (MAVProxy: "Mode LAND", then "Mode MISSION").
+        state = (tel.reported_mode(), fc.armed)
+        if state != self._last_mode:
+            self._last_mode = state
+            out.extend(tel.heartbeat())
         if fc.mission_index != self._last_index:
             self._last_index = fc.mission_index
             out.extend(tel.mission_current())

@@ -139,6 +139,7 @@ class TruthSummary:
             "forwarded_messages": int(self.link.counters.get("forwarded", 0)),
             # Counts only: the key itself is never written anywhere.
             "signing": ({"rx_unauthenticated": int(self.link.counters.get("rx_unauthenticated", 0)),
+                         "rx_mavlink1_signing": int(self.link.counters.get("rx_mavlink1_signing", 0)),
                          **self.link.endpoint.signing_counts()} if self.link.endpoint.signing_on else None),
             "statustexts_received": self.statustexts,
         }
