@@ -63,7 +63,7 @@ MAV_AUTOPILOT_INVALID = 8
 #: MAV_TYPE of a multirotor by its rotor count (tricopter, quadrotor, hexarotor, octorotor).
 MAV_TYPE_BY_ROTORS = {3: 15, 4: 2, 6: 13, 8: 14}
 #: Rotor telemetry messages (their source can be set apart: ``LiveConfig.esc_component``).
-ESC_TELEMETRY = frozenset({"ESC_STATUS", "RAW_RPM", "ESC_INFO"})
+ESC_TELEMETRY = frozenset({"ESC_STATUS", "ESC_TELEMETRY_1_TO_4", "RAW_RPM", "ESC_INFO"})
 MAX_NOTED_SOURCES = 8  # other systems/components noted by name; later ones are only counted
 
 
@@ -213,7 +213,7 @@ class LiveCore:
             if name == "rotor speeds" and self._esc_failed.any():
                 rotors = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_failed))
                 why.append(f"no rotor speeds (ESC_INFO reports the ESC of rotor {rotors} failed)")
-            elif name == "rotor speeds" and self.select.chosen["rotors"] in ("ESC_STATUS", "RAW_RPM"):
+            elif name == "rotor speeds" and self.select.chosen["rotors"] in dec.MEASURED_TYPES:
                 seen = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_seen)) or "none"
                 why.append(f"no complete set of rotor speeds (rotors reported: {seen})")
             else:

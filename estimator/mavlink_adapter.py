@@ -14,7 +14,8 @@ two sources never feed the filter twice; all decoded to SI, FRD/NED):
   (ground speed and course over ground: horizontal only). Treated as valid at their
   timestamp (an autopilot's EKF output is already delay-compensated).
 - Rotor speeds (rad/s): ESC_STATUS (rpm, windseek dialect, ``index`` = first ESC of the
-  message), or RAW_RPM (one sensor per message, no time stamp: the latest time seen is
+  message), ESC_TELEMETRY_1_TO_4 (ArduPilot's, no time stamp), or RAW_RPM (one sensor per
+  message, no time stamp: the latest time seen is
   used). ESC_INFO carries no speed: its failure flags mark an ESC's telemetry as unusable.
   ``esc_to_rotor`` maps ESC numbers to the rotor order (``estimator.motor_output``:
   :data:`SITL_ORDER`, :data:`PX4_QUAD_X`).
@@ -115,7 +116,7 @@ class MavlinkWindAdapter:
                 return False
             v = dec.velocity(msg, self.min_gps_fix)
             return v is not None and est.gnss_velocity(t, v)  # type: ignore[arg-type]
-        if mtype in ("ESC_STATUS", "RAW_RPM"):
+        if mtype in ("ESC_STATUS", "ESC_TELEMETRY_1_TO_4", "RAW_RPM"):
             if not self._claim("rotors", mtype):
                 return False
             index, speeds = dec.rotor_telemetry(msg)

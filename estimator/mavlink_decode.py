@@ -12,8 +12,9 @@ Units on the wire (MAVLink common.xml, checked against ArduPilot's senders for R
 - ATTITUDE_QUATERNION: q1..q4 = [w, x, y, z] body FRD -> NED. ATTITUDE: roll, pitch, yaw (rad, 3-2-1).
 - LOCAL_POSITION_NED: vx, vy, vz m/s. GLOBAL_POSITION_INT: cm/s. GPS_RAW_INT: vel cm/s and cog
   cdeg (horizontal only; 65535 = unknown).
-- ESC_STATUS: rpm (project dialect, ``index`` = first ESC of the message); RAW_RPM: one sensor
-  (``index``) per message, frequency in rpm, no time stamp.
+- ESC_STATUS: rpm (project dialect, ``index`` = first ESC of the message); ESC_TELEMETRY_1_TO_4
+  (ArduPilot's, ESCs 1-4 in its motor order): rpm, no time stamp; RAW_RPM: one sensor (``index``) per
+  message, frequency in rpm, no time stamp.
 - ACTUATOR_OUTPUT_STATUS: actuator[32] floats in the output driver's units (PX4: PWM us,
   1000-2000 in SITL/SIH); SERVO_OUTPUT_RAW: servo1..16_raw, PWM us. See ``motor_output``.
 
@@ -40,10 +41,12 @@ PREFERENCE: dict[str, tuple[str, ...]] = {
     "imu": ("HIL_SENSOR", "HIGHRES_IMU", "SCALED_IMU", "RAW_IMU"),
     "attitude": ("ATTITUDE_QUATERNION", "ATTITUDE"),
     "velocity": ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"),
-    "rotors": ("ESC_STATUS", "RAW_RPM", "ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"),
+    "rotors": ("ESC_STATUS", "ESC_TELEMETRY_1_TO_4", "RAW_RPM", "ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"),
 }
 #: Message type -> input group.
 GROUP_OF: dict[str, str] = {m: g for g, names in PREFERENCE.items() for m in names}
+#: Rotor-speed sources that are measured speeds (ESC telemetry).
+MEASURED_TYPES = frozenset({"ESC_STATUS", "ESC_TELEMETRY_1_TO_4", "RAW_RPM"})
 #: Rotor-speed sources that are commands (through the motor model), not measured speeds.
 COMMAND_TYPES = frozenset({"ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"})
 #: Messages whose time stamp is the autopilot's boot clock (SERVO_OUTPUT_RAW's uint32 us wraps
@@ -102,9 +105,13 @@ def velocity(msg: Any, min_gps_fix: int = 3) -> np.ndarray | None:
 
 
 def rotor_telemetry(msg: Any) -> tuple[int, list[float]]:
-    """(index of the first ESC, speeds in rad/s) of ESC_STATUS or RAW_RPM (rpm on the wire)."""
-    if msg.get_type() == "ESC_STATUS":
+    """(index of the first ESC, speeds in rad/s) of ESC_STATUS, ESC_TELEMETRY_1_TO_4 or RAW_RPM (rpm on the
+    wire)."""
+    mtype = msg.get_type()
+    if mtype == "ESC_STATUS":
         return int(msg.index), [float(r) * RPM_TO_RAD_S for r in msg.rpm]
+    if mtype == "ESC_TELEMETRY_1_TO_4":
+        return 0, [float(r) * RPM_TO_RAD_S for r in msg.rpm]
     return int(msg.index), [float(msg.frequency) * RPM_TO_RAD_S]
 
 

@@ -47,7 +47,8 @@ from vehicle.params import VehicleParams
 SITL_ORDER: tuple[int, ...] = (0, 1, 2, 3)
 #: PX4 quad-X: motor 1 front-right, 2 rear-left, 3 front-left, 4 rear-right (CA_ROTOR0..3).
 PX4_QUAD_X: tuple[int, ...] = (0, 2, 3, 1)
-MOTOR_ORDERS = {"sitl": SITL_ORDER, "px4": PX4_QUAD_X}
+#: ArduCopter's quad X numbers its motors as PX4's does (AP_MotorsMatrix MOTOR_FRAME_TYPE_X).
+MOTOR_ORDERS = {"sitl": SITL_ORDER, "px4": PX4_QUAD_X, "ardupilot": PX4_QUAD_X}
 
 
 def px4_order(params: VehicleParams) -> tuple[int, ...]:
@@ -88,11 +89,13 @@ class OutputMap:
     def for_vehicle(cls, params: VehicleParams, profile: str = "px4", thr_mdl_fac: float | None = None,
                     raw_range: tuple[float, float] = (1000.0, 2000.0)) -> OutputMap:  # fmt: skip
         """``px4``: the vehicle file's PX4 output order (:func:`px4_order`), omega_min..omega_max of the vehicle
-        file; ``sitl``: the windseek SITL's outputs (its rotor order, 0..omega_max linear)."""
+        file; ``sitl``: the windseek SITL's outputs (its rotor order, 0..omega_max linear); ``ardupilot``:
+        ArduCopter's quad X outputs (PX4's order) with windseek's ESC under ArduPilot (0..omega_max linear
+        over MOT_PWM_MIN..MAX, :mod:`sitl.ardupilot.motors`)."""
         if profile not in MOTOR_ORDERS:
             raise ValueError(f"motor order {profile!r}: choose one of {', '.join(MOTOR_ORDERS)}")
-        w_min = 0.0 if profile == "sitl" else params.rotor_speed_min_rad_s
-        order = px4_order(params) if profile == "px4" else MOTOR_ORDERS[profile]
+        w_min = 0.0 if profile in ("sitl", "ardupilot") else params.rotor_speed_min_rad_s
+        order = px4_order(params) if profile in ("px4", "ardupilot") else MOTOR_ORDERS[profile]
         return cls(order, raw_range[0], raw_range[1], w_min, params.rotor_speed_max_rad_s, thr_mdl_fac)
 
     def speed(self, u: float) -> float:

@@ -220,11 +220,12 @@ def test_missing_rotor_speeds_are_named_and_nothing_is_published(flight: Flight)
     core = _core()
     pub = Publisher(core, 10.0)
     sent = _run(core, over_the_wire([(1, 1, msgs)]), pub)
-    assert core.status_line() == ("waiting for inputs: no rotor speeds (no ESC_STATUS, RAW_RPM, ACTUATOR_OUTPUT_STATUS "
+    assert core.status_line() == ("waiting for inputs: no rotor speeds (no ESC_STATUS, ESC_TELEMETRY_1_TO_4, RAW_RPM, "
+                                  "ACTUATOR_OUTPUT_STATUS "
                                   "or SERVO_OUTPUT_RAW seen)")  # fmt: skip
     assert (
-        "rotor speeds none (no ESC_STATUS, RAW_RPM, ACTUATOR_OUTPUT_STATUS or SERVO_OUTPUT_RAW seen)"
-        in (core.take_notes()[1])
+        "rotor speeds none (no ESC_STATUS, ESC_TELEMETRY_1_TO_4, RAW_RPM, ACTUATOR_OUTPUT_STATUS or SERVO_OUTPUT_RAW "
+        "seen)" in (core.take_notes()[1])
     )
     assert sent == [] and core.output() is None and core.summary()["wind_ned_m_s"] is None
 

@@ -52,6 +52,9 @@ WANTED: dict[str, tuple[tuple[str, float], ...]] = {
     "rotors": (("ESC_STATUS", 50.0), ("ACTUATOR_OUTPUT_STATUS", 50.0)),
 }
 
+#: Rate asked for EXTENDED_SYS_STATE when it does not stream [Hz].
+STATE_HZ = 5.0
+
 
 def _range(text: str) -> tuple[float, float]:
     lo, sep, hi = text.partition(",")
@@ -79,9 +82,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, default=10.0, metavar="HZ",
                    help="WIND_COV rate, Hz of vehicle time (default 10)")
     p.add_argument("--vehicle", default="nasa_quad", help="vehicle file of the force model (name or path)")
-    p.add_argument("--esc-order", choices=("sitl", "px4"), default="sitl",
+    p.add_argument("--esc-order", choices=("sitl", "px4", "ardupilot"), default="sitl",
                    help="numbering of ESC telemetry and actuator outputs: windseek SITL (its rotor order, outputs "
-                   "1000-2000 = 0..max rotor speed) or PX4 quad-X (outputs 1000-2000 = min..max rotor speed)")
+                   "1000-2000 = 0..max rotor speed), PX4 quad-X (outputs 1000-2000 = min..max rotor speed) or "
+                   "ArduCopter quad X (PX4's numbering; windseek's ESC under ArduPilot: 1000-2000 = 0..max)")
     p.add_argument("--output-range", type=_range, default=(1000.0, 2000.0), metavar="MIN,MAX",
                    help="actuator output values at zero and full command (PWM us; default 1000,2000)")
     p.add_argument("--thr-mdl-fac", type=float, default=None, metavar="F",
@@ -203,6 +207,13 @@ def request_rates(conn: Any, core: LiveCore, mode: str, say: Any) -> None:
             conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                        float(msg_id), 1e6 / hz, 0, 0, 0, 0, 0)  # fmt: skip
             say(f"requested {name} (message {msg_id}) at {hz:g} Hz for the {group} input")
+    # The landed state gates the filter and the model's verdict (in the air only): PX4 streams it,
+    # ArduPilot only in its EXTENDED_STATUS group, which a companion port does not stream by default.
+    if mode == "always" or core.landed_state is None:
+        msg_id = mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE
+        conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                   float(msg_id), 1e6 / STATE_HZ, 0, 0, 0, 0, 0)  # fmt: skip
+        say(f"requested EXTENDED_SYS_STATE (message {msg_id}) at {STATE_HZ:g} Hz for the landed state")
 
 
 def run(args: argparse.Namespace) -> int:

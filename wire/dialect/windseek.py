@@ -6359,6 +6359,8 @@ MAVLINK_MSG_ID_BAD_DATA = -1
 MAVLINK_MSG_ID_UNKNOWN = -2
 MAVLINK_MSG_ID_ESC_INFO = 290
 MAVLINK_MSG_ID_ESC_STATUS = 291
+MAVLINK_MSG_ID_WIND = 168
+MAVLINK_MSG_ID_ESC_TELEMETRY_1_TO_4 = 11030
 MAVLINK_MSG_ID_SYS_STATUS = 1
 MAVLINK_MSG_ID_SYSTEM_TIME = 2
 MAVLINK_MSG_ID_PING = 4
@@ -6657,6 +6659,90 @@ class MAVLink_esc_status_message(MAVLink_message):
 # Define name on the class for backwards compatibility (it is now msgname).
 # Done with setattr to hide the class variable from mypy.
 setattr(MAVLink_esc_status_message, "name", mavlink_msg_deprecated_name_property())
+
+
+class MAVLink_wind_message(MAVLink_message):
+    """
+    Wind estimation.
+    """
+
+    id = MAVLINK_MSG_ID_WIND
+    msgname = "WIND"
+    fieldnames = ["direction", "speed", "speed_z"]
+    ordered_fieldnames = ["direction", "speed", "speed_z"]
+    fieldtypes = ["float", "float", "float"]
+    fielddisplays_by_name: Dict[str, str] = {}
+    fieldenums_by_name: Dict[str, str] = {}
+    fieldunits_by_name: Dict[str, str] = {"direction": "deg", "speed": "m/s", "speed_z": "m/s"}
+    native_format = bytearray(b"<fff")
+    orders = [0, 1, 2]
+    lengths = [1, 1, 1]
+    array_lengths = [0, 0, 0]
+    crc_extra = 1
+    unpacker = struct.Struct("<fff")
+    instance_field = None
+    instance_offset = -1
+
+    def __init__(self, direction: float, speed: float, speed_z: float):
+        MAVLink_message.__init__(self, MAVLink_wind_message.id, MAVLink_wind_message.msgname)
+        self._fieldnames = MAVLink_wind_message.fieldnames
+        self._instance_field = MAVLink_wind_message.instance_field
+        self._instance_offset = MAVLink_wind_message.instance_offset
+        self.direction = direction
+        self.speed = speed
+        self.speed_z = speed_z
+
+    def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.direction, self.speed, self.speed_z), force_mavlink1=force_mavlink1)
+
+
+# Define name on the class for backwards compatibility (it is now msgname).
+# Done with setattr to hide the class variable from mypy.
+setattr(MAVLink_wind_message, "name", mavlink_msg_deprecated_name_property())
+
+
+class MAVLink_esc_telemetry_1_to_4_message(MAVLink_message):
+    """
+    ESC Telemetry Data for ESCs 1 to 4, matching data sent by BLHeli
+    ESCs.
+    """
+
+    id = MAVLINK_MSG_ID_ESC_TELEMETRY_1_TO_4
+    msgname = "ESC_TELEMETRY_1_TO_4"
+    fieldnames = ["temperature", "voltage", "current", "totalcurrent", "rpm", "count"]
+    ordered_fieldnames = ["voltage", "current", "totalcurrent", "rpm", "count", "temperature"]
+    fieldtypes = ["uint8_t", "uint16_t", "uint16_t", "uint16_t", "uint16_t", "uint16_t"]
+    fielddisplays_by_name: Dict[str, str] = {}
+    fieldenums_by_name: Dict[str, str] = {}
+    fieldunits_by_name: Dict[str, str] = {"temperature": "degC", "voltage": "cV", "current": "cA", "totalcurrent": "mAh", "rpm": "rpm"}
+    native_format = bytearray(b"<HHHHHB")
+    orders = [5, 0, 1, 2, 3, 4]
+    lengths = [4, 4, 4, 4, 4, 4]
+    array_lengths = [4, 4, 4, 4, 4, 4]
+    crc_extra = 144
+    unpacker = struct.Struct("<4H4H4H4H4H4B")
+    instance_field = None
+    instance_offset = -1
+
+    def __init__(self, temperature: Sequence[int], voltage: Sequence[int], current: Sequence[int], totalcurrent: Sequence[int], rpm: Sequence[int], count: Sequence[int]):
+        MAVLink_message.__init__(self, MAVLink_esc_telemetry_1_to_4_message.id, MAVLink_esc_telemetry_1_to_4_message.msgname)
+        self._fieldnames = MAVLink_esc_telemetry_1_to_4_message.fieldnames
+        self._instance_field = MAVLink_esc_telemetry_1_to_4_message.instance_field
+        self._instance_offset = MAVLink_esc_telemetry_1_to_4_message.instance_offset
+        self.temperature = temperature
+        self.voltage = voltage
+        self.current = current
+        self.totalcurrent = totalcurrent
+        self.rpm = rpm
+        self.count = count
+
+    def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.voltage[0], self.voltage[1], self.voltage[2], self.voltage[3], self.current[0], self.current[1], self.current[2], self.current[3], self.totalcurrent[0], self.totalcurrent[1], self.totalcurrent[2], self.totalcurrent[3], self.rpm[0], self.rpm[1], self.rpm[2], self.rpm[3], self.count[0], self.count[1], self.count[2], self.count[3], self.temperature[0], self.temperature[1], self.temperature[2], self.temperature[3]), force_mavlink1=force_mavlink1)
+
+
+# Define name on the class for backwards compatibility (it is now msgname).
+# Done with setattr to hide the class variable from mypy.
+setattr(MAVLink_esc_telemetry_1_to_4_message, "name", mavlink_msg_deprecated_name_property())
 
 
 class MAVLink_sys_status_message(MAVLink_message):
@@ -16734,6 +16820,8 @@ setattr(MAVLink_heartbeat_message, "name", mavlink_msg_deprecated_name_property(
 mavlink_map: Dict[int, Type[MAVLink_message]] = {
     MAVLINK_MSG_ID_ESC_INFO: MAVLink_esc_info_message,
     MAVLINK_MSG_ID_ESC_STATUS: MAVLink_esc_status_message,
+    MAVLINK_MSG_ID_WIND: MAVLink_wind_message,
+    MAVLINK_MSG_ID_ESC_TELEMETRY_1_TO_4: MAVLink_esc_telemetry_1_to_4_message,
     MAVLINK_MSG_ID_SYS_STATUS: MAVLink_sys_status_message,
     MAVLINK_MSG_ID_SYSTEM_TIME: MAVLink_system_time_message,
     MAVLINK_MSG_ID_PING: MAVLink_ping_message,
@@ -17399,6 +17487,56 @@ class MAVLink(object):
 
         """
         self.send(self.esc_status_encode(index, time_usec, rpm, voltage, current), force_mavlink1=force_mavlink1)
+
+    def wind_encode(self, direction: float, speed: float, speed_z: float) -> MAVLink_wind_message:
+        """
+        Wind estimation.
+
+        direction                 : Wind direction (that wind is coming from). [deg] (type:float)
+        speed                     : Wind speed in ground plane. [m/s] (type:float)
+        speed_z                   : Vertical wind speed. [m/s] (type:float)
+
+        """
+        return MAVLink_wind_message(direction, speed, speed_z)
+
+    def wind_send(self, direction: float, speed: float, speed_z: float, force_mavlink1: bool = False) -> None:
+        """
+        Wind estimation.
+
+        direction                 : Wind direction (that wind is coming from). [deg] (type:float)
+        speed                     : Wind speed in ground plane. [m/s] (type:float)
+        speed_z                   : Vertical wind speed. [m/s] (type:float)
+
+        """
+        self.send(self.wind_encode(direction, speed, speed_z), force_mavlink1=force_mavlink1)
+
+    def esc_telemetry_1_to_4_encode(self, temperature: Sequence[int], voltage: Sequence[int], current: Sequence[int], totalcurrent: Sequence[int], rpm: Sequence[int], count: Sequence[int]) -> MAVLink_esc_telemetry_1_to_4_message:
+        """
+        ESC Telemetry Data for ESCs 1 to 4, matching data sent by BLHeli ESCs.
+
+        temperature               : Temperature. [degC] (type:uint8_t)
+        voltage                   : Voltage. [cV] (type:uint16_t)
+        current                   : Current. [cA] (type:uint16_t)
+        totalcurrent              : Total current. [mAh] (type:uint16_t)
+        rpm                       : RPM (eRPM). [rpm] (type:uint16_t)
+        count                     : count of telemetry packets received (wraps at 65535). (type:uint16_t)
+
+        """
+        return MAVLink_esc_telemetry_1_to_4_message(temperature, voltage, current, totalcurrent, rpm, count)
+
+    def esc_telemetry_1_to_4_send(self, temperature: Sequence[int], voltage: Sequence[int], current: Sequence[int], totalcurrent: Sequence[int], rpm: Sequence[int], count: Sequence[int], force_mavlink1: bool = False) -> None:
+        """
+        ESC Telemetry Data for ESCs 1 to 4, matching data sent by BLHeli ESCs.
+
+        temperature               : Temperature. [degC] (type:uint8_t)
+        voltage                   : Voltage. [cV] (type:uint16_t)
+        current                   : Current. [cA] (type:uint16_t)
+        totalcurrent              : Total current. [mAh] (type:uint16_t)
+        rpm                       : RPM (eRPM). [rpm] (type:uint16_t)
+        count                     : count of telemetry packets received (wraps at 65535). (type:uint16_t)
+
+        """
+        self.send(self.esc_telemetry_1_to_4_encode(temperature, voltage, current, totalcurrent, rpm, count), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """
