@@ -10,9 +10,7 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
-from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,13 +18,11 @@ from typing import Any
 
 import pytest
 
+from sitl.ardupilot.gcs import COPTER_MODES, CopterGcs  # noqa: F401 - the tests' ground station
 from sitl.ardupilot.process import ENV_BIN, ArduCopterSitl, ardupilot_binary, copter_defaults, free_instance, ports
 from sitl.scenario import load_scenario
-from wire.dialect import mavlink
 
 REPO = Path(__file__).resolve().parent.parent
-#: ArduCopter's custom modes (ArduCopter/mode.h).
-COPTER_MODES = {"STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
 
 
 def need_ardupilot() -> Path:
@@ -91,160 +87,16 @@ def ardupilot_with_windseek(tmp: Path, scenario: str = "calm", speedup: float = 
     ap = ArduCopterSitl(binary, n, tmp / "ardupilot", tmp / "ardupilot.log", home_of(scenario), speedup=speedup,
                         params=params)  # fmt: skip
     try:
-        time.sleep(1.0)  # windseek binds its port before ArduPilot's first packet (ArduPilot resends anyway)
+        # ArduPilot only starts its clock (and its heartbeats) once the physics answers: start it once windseek
+        # listens (a cold numba cache can take tens of seconds).
+        deadline = time.monotonic() + 90.0
+        while "JSON physics on UDP" not in (wlog.read_text(errors="replace") if wlog.exists() else ""):
+            if ws.poll() is not None or time.monotonic() > deadline:
+                text = wlog.read_text(errors="replace")[-800:]
+                raise RuntimeError(f"windseek sitl --ardupilot did not start: {text}")
+            time.sleep(0.1)
         ap.start()
         yield ApRun(n, p, ap, ws, summary, wlog)
     finally:
         ap.stop()
         stop_process(ws)
-
-
-class CopterGcs:
-    """A pymavlink ground station on ArduCopter's SERIAL0 (MAVLink 2), with ArduCopter's mode numbers.
-
-    A thread reads the link all the time (ArduPilot SITL slows itself down while its SERIAL0 queue is
-    over 1 kB: a ground station that does not read pauses the simulation) into a bounded queue (oldest
-    dropped, counted), and sends a heartbeat 5 times per wall second (ArduCopter's ground-station
-    failsafe runs on its simulated clock)."""
-
-    def __init__(self, port: int, timeout_s: float = 30.0, keep: int = 20000) -> None:
-        os.environ["MAVLINK20"] = "1"
-        from pymavlink import mavutil
-
-        deadline = time.monotonic() + timeout_s
-        while True:
-            try:
-                self.m = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255, source_component=190,
-                                                    retries=0)  # fmt: skip
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
-        self.text: list[str] = []
-        self.queue: deque[Any] = deque(maxlen=keep)
-        self.dropped = 0
-        self._cv = threading.Condition()
-        self._stop = threading.Event()
-        self._lock = threading.Lock()  # pymavlink's connection is not thread-safe for sending
-        self._threads = [threading.Thread(target=self._read, daemon=True), threading.Thread(target=self._beat,
-                                                                                            daemon=True)]
-        for t in self._threads:
-            t.start()
-
-    def _read(self) -> None:
-        while not self._stop.is_set():
-            try:
-                msg = self.m.recv_match(blocking=True, timeout=0.2)
-            except (OSError, ValueError):
-                break
-            if msg is None:
-                continue
-            if msg.get_type() == "STATUSTEXT":
-                self.text.append(msg.text)
-            with self._cv:
-                if len(self.queue) == self.queue.maxlen:
-                    self.dropped += 1
-                self.queue.append(msg)
-                self._cv.notify_all()
-
-    def _beat(self) -> None:
-        while not self._stop.wait(0.2):
-            with contextlib.suppress(OSError):
-                self.heartbeat()
-
-    def recv(self, types: list[str] | str | None = None, timeout_s: float = 5.0, cond: Any = None) -> Any:
-        """The first message from now on of ``types`` satisfying ``cond`` within ``timeout_s`` (None if none)."""
-        deadline = time.monotonic() + timeout_s
-        want = [types] if isinstance(types, str) else types
-        with self._cv:
-            self.queue.clear()
-            while True:
-                while self.queue:
-                    msg = self.queue.popleft()
-                    if (want is None or msg.get_type() in want) and (cond is None or cond(msg)):
-                        return msg
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._cv.wait(left)
-
-    def send(self, fn: str, *args: Any) -> None:
-        with self._lock:
-            getattr(self.m.mav, fn)(*args)
-
-    def heartbeat(self) -> None:
-        self.send("heartbeat_send", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-
-    def command(self, cmd: int, *params: float, timeout_s: float = 5.0) -> int | None:
-        """COMMAND_LONG; its COMMAND_ACK result (None if none came)."""
-        p = list(params) + [0.0] * (7 - len(params))
-        with self._cv:
-            self.queue.clear()
-        self.send("command_long_send", self.m.target_system or 1, 1, cmd, 0, *p)
-        ack = self._wait("COMMAND_ACK", timeout_s, lambda a: a.command == cmd)
-        return None if ack is None else int(ack.result)
-
-    def _wait(self, types: list[str] | str, timeout_s: float, cond: Any = None) -> Any:
-        """Like :meth:`recv` without clearing what came since the last clear (answers to a request)."""
-        deadline = time.monotonic() + timeout_s
-        want = [types] if isinstance(types, str) else types
-        with self._cv:
-            while True:
-                while self.queue:
-                    msg = self.queue.popleft()
-                    if msg.get_type() in want and (cond is None or cond(msg)):
-                        return msg
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._cv.wait(left)
-
-    def set_mode(self, name: str) -> int | None:
-        return self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, COPTER_MODES[name])
-
-    def request_streams(self, rate_hz: int = 10) -> None:
-        """All of ArduPilot's data streams on this link at ``rate_hz`` (of ArduPilot's clock), as MAVProxy asks."""
-        self.send("request_data_stream_send", self.m.target_system or 1, 1, mavlink.MAV_DATA_STREAM_ALL, rate_hz, 1)
-
-    def arm_when_ready(self, mode: str = "GUIDED", timeout_s: float = 90.0) -> int | None:
-        """Arm in ``mode`` (retried once a wall second while ArduCopter's checks refuse: EKF and GPS settle
-        first). The mode is set again before each try: when the simulated RC input comes up, ArduCopter
-        takes the mode of its flight-mode switch (``FLTMODE*``), whatever was set before."""
-        deadline = time.monotonic() + timeout_s
-        r = None
-        while time.monotonic() < deadline:
-            if self.set_mode(mode) != 0 or self.recv("HEARTBEAT", 2.0, lambda h: h.get_srcComponent() == 1
-                                                     and h.custom_mode == COPTER_MODES[mode]) is None:  # fmt: skip
-                time.sleep(1.0)
-                continue
-            r = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-            if r == 0:
-                return 0
-            time.sleep(1.0)
-        return r
-
-    def upload_mission(self, items: list[tuple[int, float, float, float]], timeout_s: float = 20.0) -> int | None:
-        """(command, lat deg, lon deg, alt m relative) items after a home item 0; the MISSION_ACK type."""
-        sysid = self.m.target_system or 1
-        all_items = [(mavlink.MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0), *items]
-        with self._cv:
-            self.queue.clear()
-        self.send("mission_count_send", sysid, 1, len(all_items), 0)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            r = self._wait(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5.0)
-            if r is None:
-                return None
-            if r.get_type() == "MISSION_ACK":
-                return int(r.type)
-            cmd, lat, lon, alt = all_items[r.seq]
-            self.send("mission_item_int_send", sysid, 1, r.seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1,
-                      0, 0, 0, 0, int(round(lat * 1e7)), int(round(lon * 1e7)), alt, 0)  # fmt: skip
-        return None
-
-    def close(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            t.join(2.0)
-        self.m.close()

@@ -36,6 +36,7 @@ import numpy as np
 
 from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
+from mission.runners import ardupilot
 from mission.runners.fence import SiteBuildings, place_buildings
 from mission.runners.live_wind import ESTIMATOR_MESSAGES, EstimatedLiveWind, NoLiveWind, WindCovWind
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
@@ -49,6 +50,8 @@ from vehicle.vehicle_file import load_vehicle
 
 #: PX4's data-link-loss action parameter (INT32 on PX4) and the value the runner needs: land.
 DLL_PARAM, DLL_LAND = "NAV_DLL_ACT", 3
+#: The system id MAVSDK takes as a ground station (``ComponentType.GROUND_STATION``: 245, component 190).
+MAVSDK_GCS_SYSID = 245
 
 __all__ = ["MissionConfig", "MissionError", "MissionResult", "run_mission"]
 
@@ -136,7 +139,10 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
                                seed=cfg.seed, obstacles=obstacles)  # fmt: skip
             loop.result.strategy = cfg.strategy
-            await _ensure_datalink_failsafe(v, loop.say)
+            if v.ardupilot:
+                await ardupilot.ensure_gcs_failsafe(v, loop.say, MAVSDK_GCS_SYSID)
+            else:
+                await _ensure_datalink_failsafe(v, loop.say)
             lags: list[float] = []
             probe = asyncio.create_task(_loop_lag(lags))
             try:

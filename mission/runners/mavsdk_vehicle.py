@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mission.result import MissionError
+from mission.runners import ardupilot
 from mission.runners.autopilot import find_autopilot
 from mission.vehicle import CommandError, VehicleState, Wait
 from wire import px4_modes
@@ -103,6 +104,9 @@ class MavsdkVehicle:
         self._subs: list[tuple[Any, Any]] = []
         self._publisher: asyncio.Task[None] | None = None
         self.drone: Any = None
+        self.ardupilot = False  # the autopilot's HEARTBEAT says ArduPilot (modes, streams, failsafe differ)
+        self.offboard_active = False  # setpoints streamed since a successful start_offboard
+        self._mode_shown = ""
 
     # ------------------------------------------------------------------ connection
     async def __aenter__(self) -> MavsdkVehicle:
@@ -171,6 +175,8 @@ class MavsdkVehicle:
         if await self.wait(lambda: st.heartbeat_seq > 0, math.inf, cfg.connect_timeout_s) != Wait.OK:
             raise MissionError("no autopilot HEARTBEAT through mavlink_direct")
         self.say(f"mission: connected to system {self.target[0] if self.target else '?'} on {cfg.connect}")
+        if self.ardupilot:
+            await ardupilot.request_streams(self)
         await self._healthy()
         if await self.wait(lambda: st.pos is not None, math.inf, cfg.connect_timeout_s) != Wait.OK:
             raise MissionError("no LOCAL_POSITION_NED from the autopilot")
@@ -201,6 +207,7 @@ class MavsdkVehicle:
         f = json.loads(fields_json)
         if name == "HEARTBEAT" and self.target is None and int(f.get("autopilot", 8)) != MAV_AUTOPILOT_INVALID:
             self.target = (sysid, compid)
+            self.ardupilot = int(f["autopilot"]) == ardupilot.MAV_AUTOPILOT_ARDUPILOTMEGA
         if self.target is None or sysid != self.target[0]:
             self.counters["rx_other_system"] += 1
             return
@@ -248,10 +255,15 @@ class MavsdkVehicle:
             st.chem_t = t if t > 0.0 else math.nan  # the reading's own time (see Observation.chem_t)
         elif name == "HEARTBEAT":
             st.armed = bool(int(f["base_mode"]) & px4_modes.SAFETY_ARMED)
-            mode = px4_modes.name(int(f["custom_mode"]))
+            cm = int(f["custom_mode"])
+            if self.ardupilot:  # ArduCopter's mode, by what it does in PX4's names (mission.runners.ardupilot)
+                mode, native = ardupilot.loop_mode(cm, self.offboard_active), ardupilot.copter_mode_name(cm)
+                shown = mode if mode == native else f"{native} ({mode})"
+            else:
+                mode = shown = px4_modes.name(cm)
             if mode != st.mode and st.mode:
-                self.say(f"mission: autopilot mode {st.mode} -> {mode}")
-            st.mode = mode
+                self.say(f"mission: autopilot mode {self._mode_shown} -> {shown}")
+            st.mode, self._mode_shown = mode, shown
             st.crashed = int(f.get("system_status", 0)) == MAV_STATE_EMERGENCY
             st.heartbeat_seq += 1
             self._wake()
@@ -364,8 +376,10 @@ class MavsdkVehicle:
 
     async def start_offboard(self) -> None:
         await self._command("offboard", self.offb.start)
+        self.offboard_active = True
 
     async def stop_offboard(self) -> None:
+        self.offboard_active = False
         await self._command("stop offboard", self.offb.stop)
 
     async def hold(self) -> None:

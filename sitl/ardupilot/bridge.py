@@ -22,7 +22,9 @@ defaults). Its IMU noise is turned off there (``SIM_ACC*_RND``, ``SIM_GYR*_RND``
 0): the IMU is windseek's.
 
 For the companion programs (through ArduPilot's MAVLink routing, :mod:`sitl.ardupilot.peripheral`):
-ESC_STATUS from the ESC model (50 Hz), the chemical reading, the true wind (5 Hz), as with PX4.
+the ESC model's rotor speeds (50 Hz) as ESC_TELEMETRY_1_TO_4 (ArduPilot does not know ESC_STATUS, so
+it would not forward it; ESC 1-4 = windseek's rotors 1-4, as the PX4 route's ESC_STATUS), the
+chemical reading and the true wind (5 Hz), as with PX4.
 
 Units SI, NED world, FRD body; simulation time in s.
 """
@@ -48,6 +50,7 @@ from sitl.scenario import Scenario
 from sitl.world.kernel import T_POS, T_QUAT, T_TIME, T_VEL, T_WIND
 from sitl.world.plume.part import CHEM_OUTPUT
 from sitl.world.world import World
+from wire.dialect import mavlink
 
 #: Physics and IMU rate for ArduPilot [Hz]: ArduCopter's pre-arm check wants the gyro at 1.8x its 400 Hz
 #: main loop (``AP_InertialSensor::pre_arm_check_gyro_backend_rate_hz``), and each frame is one tick.
@@ -93,6 +96,7 @@ class ArduPilotBridge:
         self.truth = TruthScore(rate_hz=sc.mode_rate_hz)
         self._truth_every = max(1, round(1.0 / (sc.mode_rate_hz * self.tick_s)))
         self.frames = 0
+        self._esc_count = 0
         self._next_wind = 0.0
         self._last: FrameOutput | None = None
         # One tick on the ground so that the first reply has an IMU sample and a positive timestamp.
@@ -129,8 +133,8 @@ class ArduPilotBridge:
         tr = row.tolist()  # Python floats format several times faster than numpy scalars
         out = FrameOutput(state_reply(tr[T_TIME], gyr.tolist(), acc.tolist(), tr[T_POS], tr[T_VEL], tr[T_QUAT]))
         s = self._pending
-        for te, speeds in s["esc"]:
-            out.to_companion.append(hm.esc_status(te, speeds))
+        for _te, speeds in s["esc"]:
+            out.to_companion.append(self._esc_telemetry(speeds))
         for r in s.get(CHEM_OUTPUT, ()):
             out.to_companion.append(hm.named_value(r.t, "CHEM", r.value_mg_m3))
         t0 = float(row[T_TIME])
@@ -141,6 +145,14 @@ class ArduPilotBridge:
             out.to_companion.extend(hm.true_wind(t0, row[T_WIND]))
         self._last = out
         return out
+
+    def _esc_telemetry(self, speeds_rad_s: Any) -> Any:
+        """ESC_TELEMETRY_1_TO_4 of measured rotor speeds (ESC 1-4 = windseek's rotors 1-4, rpm), as the
+        peripheral's ESC telemetry (ArduPilot forwards it; it does not know ESC_STATUS)."""
+        self._esc_count = (self._esc_count + 1) & 0xFFFF
+        rpm = [max(0, min(65535, int(round(float(w) * hm.RAD_S_TO_RPM)))) for w in speeds_rad_s]
+        return mavlink.MAVLink_esc_telemetry_1_to_4_message([0] * 4, [0] * 4, [0] * 4, [0] * 4, rpm,
+                                                            [self._esc_count] * 4)  # fmt: skip
 
     def repeat(self) -> bytes:
         """The last reply again (ArduPilot resent a frame it had no answer to): the world does not move."""

@@ -8,7 +8,8 @@ model of windseek's rotor (``MOT_THST_EXPO``, ``MOT_THST_HOVER``, from the vehic
 :mod:`sitl.ardupilot.motors`; hover learning off so that every run starts alike, no battery
 voltage compensation: windseek's motors do not sag), the battery (``SIM_BATT_VOLTAGE`` full charge
 of the vehicle file's cells, ``BATT_CAPACITY``), the ground-station failsafe on (``FS_GCS_ENABLE 1``:
-RTL after ``FS_GCS_TIMEOUT`` s without the ground station's heartbeat), and ArduPilot SITL's own IMU
+RTL after ``FS_GCS_TIMEOUT`` s without the heartbeat of system ``MAV_GCS_SYSID``, set to 245: MAVSDK's
+ground-station id, so ``windseek mission`` is the ground station it follows), and ArduPilot SITL's own IMU
 noise and vibration off (``SIM_ACC*_RND``, ``SIM_GYR*_RND``, ``SIM_VIB_MOT_MAX``: the IMU is windseek's).
 
 Load it on top of ArduPilot's own SITL defaults:
@@ -44,13 +45,16 @@ def vehicle_params(vehicle: VehicleParams) -> list[tuple[str, float]]:
     p += [("BATT_MONITOR", 4), ("BATT_CAPACITY", round(vehicle.battery_capacity_mah)),
           ("SIM_BATT_VOLTAGE", round(CELL_FULL_V * vehicle.battery_cells, 2)),
           ("SIM_BATT_CAP_AH", round(vehicle.battery_capacity_mah / 1000.0, 3))]  # fmt: skip
-    p += [("FS_GCS_ENABLE", 1), ("FS_GCS_TIMEOUT", FS_GCS_TIMEOUT_S)]
+    # The failsafe follows the heartbeats of MAV_GCS_SYSID only: windseek mission's (MAVSDK's ground-station id).
+    p += [("FS_GCS_ENABLE", 1), ("FS_GCS_TIMEOUT", FS_GCS_TIMEOUT_S), ("MAV_GCS_SYSID", MAVSDK_GCS_SYSID)]
     for i in (1, 2, 3):
         p += [(f"SIM_ACC{i}_RND", 0), (f"SIM_GYR{i}_RND", 0)]
     p += [("SIM_VIB_MOT_MAX", 0)]
     return p
 
 
+#: The system id MAVSDK (windseek mission) takes as a ground station.
+MAVSDK_GCS_SYSID = 245
 #: ArduCopter's ground-station failsafe timeout in the shipped file [s of ArduPilot's clock].
 FS_GCS_TIMEOUT_S = 5.0
 

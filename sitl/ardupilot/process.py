@@ -91,11 +91,13 @@ class ArduCopterSitl:
         log: where its output goes; home: ``--home LAT,LON,ALT,YAW`` (windseek's origin:
             :func:`sitl.ardupilot.launch.home_arg`); speedup: ArduPilot's ``--speedup``;
         params: parameter files on top of ``copter.parm`` (default: the paper's vehicle);
-        extra_args: more command-line arguments.
+        extra_args: more command-line arguments; model: ArduPilot's ``--model`` (``JSON``: windseek;
+            ``quad``: ArduPilot's own multicopter physics, the peer of the benchmarks).
     """
 
     def __init__(self, binary: Path, instance: int, workdir: Path, log: Path, home: str, speedup: float = 1.0,
-                 params: list[Path] | None = None, extra_args: list[str] | None = None) -> None:  # fmt: skip
+                 params: list[Path] | None = None, extra_args: list[str] | None = None,
+                 model: str = "JSON") -> None:  # fmt: skip
         self.binary = Path(binary)
         self.instance = int(instance)
         self.workdir = Path(workdir)
@@ -107,7 +109,7 @@ class ArduCopterSitl:
         files = [base, *(params if params is not None else [PARAMS_FILE]), self.speedup_file]
         self._speedup = float(speedup)
         self.ports = ports(self.instance)
-        self.args = [str(self.binary), "--model", "JSON", "-I", str(self.instance), "--speedup", f"{speedup:g}",
+        self.args = [str(self.binary), "--model", model, "-I", str(self.instance), "--speedup", f"{speedup:g}",
                      "--home", home, "--defaults", ",".join(str(f) for f in files), "--serial0", "tcp:0",
                      "--sim-port-out", str(self.ports["json"]), *(extra_args or [])]  # fmt: skip
         self.proc: subprocess.Popen[bytes] | None = None

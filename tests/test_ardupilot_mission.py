@@ -1,0 +1,54 @@
+"""The estimator and the MAVSDK mission runner against ArduCopter SITL flying windseek's world: a real ArduCopter
+built from source (``WINDSEEK_ARDUPILOT_BIN``; skipped without it). ``windseek estimator`` on SERIAL0 and
+``windseek mission --strategy surge-cast --wind estimated`` on SERIAL1, as ``benchmarks/ardupilot_search.py``
+runs them per seed."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from ardupilot_support import REPO, ardupilot_with_windseek, stop_process
+
+pytestmark = [pytest.mark.e2e, pytest.mark.ardupilot]
+SPEEDUP = 5.0
+
+
+def test_surge_cast_through_arducopter_finds_the_source_with_the_estimator_beside(tmp_path: Path) -> None:
+    with ardupilot_with_windseek(tmp_path, "open-field-low", speedup=SPEEDUP, seed=7) as run:
+        est_log = open(tmp_path / "estimator.log", "wb")  # noqa: SIM115 - closed below
+        est = subprocess.Popen([sys.executable, "-m", "windseek.cli", "estimator", "--connect",
+                                f"tcpout://127.0.0.1:{run.ports['gcs']}", "--esc-component", "158", "--json",
+                                "--link-timeout", "60", "--connect-timeout", "60"],
+                               cwd=REPO, stdout=subprocess.PIPE, stderr=est_log)  # fmt: skip
+        try:
+            m = subprocess.run([sys.executable, "-m", "windseek.cli", "mission", "--connect",
+                                f"tcpout://127.0.0.1:{run.ports['companion']}", "--strategy", "surge-cast", "--wind",
+                                "estimated", "--esc-component", "158", "--seed", "7", "--speed-hint", f"{SPEEDUP:g}",
+                                "--json"], cwd=REPO, capture_output=True, text=True, timeout=400)  # fmt: skip
+        finally:
+            stop_process(est)  # type: ignore[arg-type]
+            est_log.close()
+        est_out = est.stdout.read().decode() if est.stdout else ""  # type: ignore[union-attr]
+    log = m.stderr
+    assert m.returncode == 0, log[-3000:]
+    res = json.loads(m.stdout.strip().splitlines()[-1])
+    s = run.summary()
+    # The mission on ArduCopter: its failsafe checked, GUIDED as offboard, found, landed over it.
+    assert "FS_GCS_ENABLE = 1" in log and "MAV_GCS_SYSID = 245" in log, log[-3000:]
+    assert "GUIDED (OFFBOARD)" in log and "LAND (AUTO.LAND)" in log, log[-3000:]
+    assert res["cause"] == "declared" and res["landed"] and res["disarmed"], res
+    assert "ESC_TELEMETRY_1_TO_4" in res["wind_source"], res["wind_source"]
+    assert s["declared_error_horizontal_m"] is not None and s["declared_error_horizontal_m"] < 5.0, s
+    assert not s["crashed"] and s["on_ground"], s
+    # The estimator beside it on ArduPilot's streams, its WIND_COV routed back by ArduPilot and scored.
+    e = json.loads(est_out.strip().splitlines()[-1])
+    assert e["inputs"] == {"attitude": "ATTITUDE_QUATERNION", "velocity": "LOCAL_POSITION_NED",
+                           "rotors": "ESC_TELEMETRY_1_TO_4"}, e["inputs_line"]  # fmt: skip
+    assert s["wind_estimates_scored"] > 100, s
+    rmse = s["wind_rmse_ned_m_s"]
+    assert math.hypot(rmse[0], rmse[1]) < 1.0 and rmse[2] < 0.6, rmse
