@@ -57,7 +57,8 @@ def test_peripheral_talks_as_px4s_component_158_and_scores_what_comes_back() -> 
             payload.sendto(m.pack(est), peer)
         payload.sendto(b"\xfd\x09garbage", peer)  # malformed: counted, dropped
         # (the garbage is read after the scores: wait for it too, or its count races the summary)
-        wait_for(lambda: b.truth.n == 3 and b.truth.declaration is not None and periph.counters["rx_bad"] >= 1,
+        sc = b.truth
+        wait_for(lambda: sc.estimator.n == 3 and sc.declaration is not None and periph.counters["rx_bad"] >= 1,
                  what="the scores and the malformed datagram counted")  # fmt: skip
         t_end = b.world.t
         px4.close()
