@@ -35,10 +35,13 @@ from typing import Any
 
 from sitl.ardupilot.bridge import ArduPilotBridge
 from sitl.ardupilot.json_protocol import PacketError, parse_servo_packet
+from wire.dialect import mavlink
 
 MAV_AUTOPILOT_INVALID = 8
 #: Frames between two services of the peripheral link (10 = 20 ms of simulation time).
 SERVICE_FRAMES = 10
+#: Rate asked of ArduPilot's WIND message on the peripheral's port [Hz of ArduPilot's clock].
+WIND_HZ = 10.0
 #: Wall seconds one wait for a servo packet lasts before the loop looks at its stop flag and the stall clock.
 IDLE_S = 0.05
 
@@ -81,6 +84,7 @@ class JsonRunner:
         self._stalled = False
         self._said: set[str] = set()
         self._outbox: list[Any] = []
+        self._next_wind_ask = 0.0
         self.wall_first = self.wall_last = 0.0
         self.sim_first = 0.0
         self.cpu_s = 0.0  # CPU seconds of the process from the first frame on (spinning included)
@@ -223,7 +227,16 @@ class JsonRunner:
                 self._learn_system(m.get_srcSystem())
             self.bridge.truth.on_message(m)
         if self.ardupilot_system is not None:
-            p.heartbeat(time.monotonic())
+            now = time.monotonic()
+            p.heartbeat(now)
+            if not self.bridge.truth.autopilot.received and now >= self._next_wind_ask:
+                # ArduPilot's own wind estimate (EKF3's WIND), scored apart from the companions' (one ask every
+                # 5 s until it streams: ArduPilot streams on a port only what was asked for there).
+                self._next_wind_ask = now + 5.0
+                p.send([mavlink.MAVLink_command_long_message(self.ardupilot_system, 1,
+                                                             mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                             float(mavlink.MAVLINK_MSG_ID_WIND), 1e6 / WIND_HZ,
+                                                             0, 0, 0, 0, 0)])  # fmt: skip
 
     def _learn_system(self, sysid: int) -> None:
         if sysid != self.ardupilot_system and 0 < sysid < 255:

@@ -122,7 +122,7 @@ class TruthScore:
                 "wind_estimates_scored_after_10s": e["scored_after_settle"],
                 "wind_rmse_1s_ned_m_s": e["rmse_1s_ned_m_s"],
                 "wind_rmse_1s_horizontal_m_s": e["rmse_1s_horizontal_m_s"],
-                "wind_coverage_95_horizontal": e["coverage_95_horizontal"],
+                "wind_coverage_95_horizontal": e["coverage_95_horizontal"], "wind_series_1s": e["series_1s"],
                 "wind_last_estimate_ned_m_s": e["last_estimate_ned_m_s"], "autopilot_wind": self.autopilot.to_dict(),
                 "true_sources_ned_m": sources_ned, "declared": self.declaration, "declared_error_horizontal_m": err,
                 "path_length_m": round(self.path_m, 2)}  # fmt: skip

@@ -7,6 +7,8 @@ per source (windseek's estimator, the autopilot's own estimate).
 - **RMSE of 1-s means**: the estimates and the truth at their times averaged over each whole second of
   simulation time, then compared (the paper's and the issue's figure: turbulence faster than 1 s is
   not a wind an estimator is asked for).
+  The 1-s means are kept as a series (``series_1s``: second, estimate N E D, truth N E D) for figures
+  such as the time to converge after a wind step.
 - **Coverage**: the fraction of estimates whose horizontal error lies inside the stated 95 % circle
   (``var_horiz`` of WIND_COV split equally between N and E: radius^2 = 5.991 var_horiz / 2). None for
   an estimate without a covariance (ArduPilot's WIND).
@@ -17,10 +19,13 @@ Conventions: SI, NED, wind = air-mass velocity NED; simulation time in s.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Any
 
 import numpy as np
 
+#: Seconds of 1-s means kept for the summary's series.
+SERIES_MAX = 3600
 #: chi-square 95 % quantile with 2 degrees of freedom (the horizontal error circle).
 CHI2_95_2DOF = 5.991
 
@@ -43,6 +48,8 @@ class WindScore:
         self._bin_n = 0
         self.err2_1s = np.zeros(3)
         self.n_1s = 0
+        #: [t of the second, mean estimate N E D, mean truth N E D] per scored second (the newest SERIES_MAX).
+        self.series: deque[list[float]] = deque(maxlen=SERIES_MAX)
 
     def add(self, t: float, est: np.ndarray, truth: np.ndarray, since_lift_off_s: float,
             var_h: float | None = None) -> None:  # fmt: skip
@@ -70,6 +77,7 @@ class WindScore:
             d = m[:3] - m[3:]
             self.err2_1s += d * d
             self.n_1s += 1
+            self.series.append([float(self._bin or 0), *(round(float(v), 3) for v in m)])
         self._bin_sum[:] = 0.0
         self._bin_n = 0
 
@@ -87,6 +95,6 @@ class WindScore:
                 "rmse_ned_after_settle_m_s": rmse(self.err2_settled, self.n_settled),
                 "scored_after_settle": self.n_settled, "rmse_1s_ned_m_s": r1,
                 "rmse_1s_horizontal_m_s": round(math.hypot(r1[0], r1[1]), 3) if self.n_1s else None,  # type: ignore[arg-type]
-                "seconds_scored": self.n_1s,
+                "seconds_scored": self.n_1s, "series_1s": list(self.series),
                 "coverage_95_horizontal": round(self.covered / self.n_cov, 3) if self.n_cov else None,
                 "last_estimate_ned_m_s": self.last_estimate}  # fmt: skip
