@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import socket
 import time
 from collections.abc import AsyncIterator, Callable, Iterator
@@ -34,11 +35,39 @@ def scenario(**extra: Any) -> Scenario:
     return parse_scenario(data)
 
 
+#: Ports handed out by :func:`free_port`: below Linux's ephemeral range (32768-60999), so no socket bound
+#: to port 0 (a SITL's, MAVSDK's, another test's) can take one between the check and the test's own bind.
+#: Each pytest-xdist worker gets its own slice, and a process starts at an offset of its pid within it.
+PORT_BASE, PORT_SPAN = 20000, 12000
+_next_port = [0]
+
+
+def _worker_slice() -> tuple[int, int]:
+    w = os.environ.get("PYTEST_XDIST_WORKER", "")
+    n = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1))
+    i = int(w[2:]) if w.startswith("gw") and w[2:].isdigit() else 0
+    span = PORT_SPAN // n
+    return PORT_BASE + i * span, span
+
+
 def free_port(kind: int = socket.SOCK_DGRAM) -> int:
-    """An ephemeral port that is free now (never 14540/14550)."""
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A port that is free now for ``kind`` and for UDP and TCP alike, outside the ephemeral range (never
+    14540/14550): successive calls in one process never repeat a port within its slice."""
+    base, span = _worker_slice()
+    if not _next_port[0]:
+        _next_port[0] = os.getpid() * 7919 % span
+    for _ in range(span):
+        port = base + _next_port[0] % span
+        _next_port[0] += 1
+        try:
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as u:
+                u.bind(("127.0.0.1", port))
+                with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as t:
+                    t.bind(("127.0.0.1", port))
+        except OSError:
+            continue
+        return port
+    raise RuntimeError(f"no free port in {base}-{base + span - 1}")
 
 
 @contextlib.contextmanager

@@ -20,6 +20,7 @@ from datetime import datetime
 from pathlib import Path
 
 import pytest
+from link_support import free_port
 
 from mission.campaign.grid import expand
 from mission.campaign.spec import load_campaign
@@ -194,9 +195,7 @@ def test_a_failing_mission_is_retried_once_and_recorded(cluster: Cluster, tmp_pa
 
 
 def test_an_unreachable_scheduler_is_one_line_before_any_work(tmp_path: Path) -> None:
-    with socket.socket() as s:  # a free port nobody listens on
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port(socket.SOCK_STREAM)  # a free port nobody listens on
     out = tmp_path / "res"
     spec = tmp_path / "spec.toml"
     spec.write_text(SPEC)

@@ -18,17 +18,12 @@ import time
 from pathlib import Path
 
 from estimator_stream import autopilot_messages, record
+from link_support import free_port
 
 from wire.dialect import mavlink
 
 ROOT = Path(__file__).resolve().parent.parent
 SPEED = 5.0  # simulated seconds per wall second
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def test_estimator_locks_on_and_restarts_after_a_reboot_over_udp() -> None:
@@ -38,7 +33,7 @@ def test_estimator_locks_on_and_restarts_after_a_reboot_over_udp() -> None:
     after = [(t, 1, m) for t, m in autopilot_messages(f, t_offset=-11.5) if t >= 12.0]
     seven = [(t, 7, m) for t, m in autopilot_messages(other, t_offset=500.0) if t < 20.0 and int(t * 250) % 5 == 0]
     plan = sorted(before + after + seven, key=lambda x: x[0])
-    port = _free_port()
+    port = free_port()
     est = subprocess.Popen(
         [sys.executable, "-m", "windseek.cli", "estimator", "--connect", f"udpin://127.0.0.1:{port}",
          "--json", "--progress-every", "0", "--link-timeout", "5", "--duration", "60"],

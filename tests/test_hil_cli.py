@@ -13,20 +13,15 @@ import time
 from pathlib import Path
 
 from hil_support import FakePx4, wait_for
+from link_support import free_port
 
 from wire.dialect import mavlink
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_px4_mode_serves_a_px4_and_writes_its_summary_and_tlog(tmp_path: Path) -> None:
-    port = _port()
+    port = free_port(socket.SOCK_STREAM)
     summary, tlog = tmp_path / "s.json", tmp_path / "run.tlog"
     proc = subprocess.Popen([sys.executable, "-m", "windseek.cli", "sitl", "paper-s1", "--px4", "--px4-port",
                              str(port), "--px4-free", "--px4-mavlink", "none", "--exit-summary", str(summary),
