@@ -12,6 +12,9 @@ Messages (ArduPilot's LogStructure; :mod:`review.df_tables` decodes whole types 
     STAT                  isFlying (ArduPlane) -> in-air state; else ARM ArmState / Armed -> arming
     MSG, MODE             texts and mode changes; the first MSG names the firmware (ArduPlane V3.8.2)
     PARM                  Q_ENABLE (a QuadPlane), FRAME_CLASS (Copter) -> vehicle type
+    BAT (instance 0)      Volt [V], Curr [A], RemPct [%] (newer logs)                -> battery
+    GPS (instance 0)      Lat, Lng [deg], Alt [m AMSL], Status (GPS_FIX_TYPE), NSats -> gps
+    ORGN (Type 0)         Lat, Lng [deg], Alt [m]: the EKF origin                    -> the GPS track's origin
 
 A file that ends inside a message (a truncated log) is read up to it, with a warning, as for a tlog.
 
@@ -163,6 +166,34 @@ def _states(fd: FlightData, T: DataFlashTables, mav_type: int) -> None:
         fd.texts += [(float(t), s, "INFO") for t, s in zip(T.time_s(msg), T.texts(msg, "Message"), strict=True)]
 
 
+def _instance0(T: DataFlashTables, name: str) -> dict[str, np.ndarray] | None:
+    """Rows of instance 0 of a type (its instance column is Instance, Inst or I, by firmware version)."""
+    t = T.get(name)
+    col = next((c for c in ("Instance", "Inst", "I") if t is not None and c in t), None)
+    return t if col is None else T.first_instance(name, col)
+
+
+def _battery_gps(fd: FlightData, T: DataFlashTables) -> None:
+    """Battery (BAT), GPS fixes (GPS) and the EKF origin (ORGN) for the recording's plots and map."""
+    bat = _instance0(T, "BAT")
+    if bat is not None and "Volt" in bat and len(bat["Volt"]):
+        n = len(bat["Volt"])
+        rem = bat["RemPct"] * 0.01 if "RemPct" in bat else np.full(n, np.nan)
+        fd.battery = Series.of(T.time_s(bat), np.column_stack([bat["Volt"], bat.get("Curr", np.full(n, np.nan)),
+                                                                rem]), "battery")  # fmt: skip
+        fd.sources["battery"] = "BAT"
+    gps = _instance0(T, "GPS")
+    if gps is not None and all(k in gps for k in ("Lat", "Lng", "Alt", "Status")) and len(gps["Lat"]):
+        sats = gps.get("NSats", np.full(len(gps["Lat"]), np.nan))
+        v = np.column_stack([gps["Lat"], gps["Lng"], gps["Alt"], gps["Status"], sats])
+        fd.gps = Series.of(T.time_s(gps), v, "gps")
+        fd.sources["gps"] = "GPS"
+    org = T.get("ORGN")
+    if org is not None and all(k in org for k in ("Lat", "Lng", "Alt")) and len(org["Lat"]):
+        i = int(np.nonzero(org["Type"] == 0)[0][0]) if "Type" in org and (org["Type"] == 0).any() else 0
+        fd.gps_origin = (float(org["Lat"][i]), float(org["Lng"][i]), float(org["Alt"][i]))
+
+
 def read_dataflash(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float = 600.0) -> FlightData:
     """Decode a DataFlash ``.bin`` (see the module docstring); ``motor_order`` ``auto`` means quad-x."""
     path = Path(path)
@@ -181,6 +212,7 @@ def read_dataflash(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: f
     _rotors(fd, T, order, w_max_rad_s)
     _wind(fd, T)
     _states(fd, T, mav_type)
+    _battery_gps(fd, T)
     if T.undecodable:
         fd.notes.append("message types not decodable from their FMT: " + ", ".join(T.undecodable))
     fd.texts.sort(key=lambda r: r[0])

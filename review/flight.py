@@ -17,6 +17,13 @@ The estimator inputs are:
     velocity    (N, 3): NED ground velocity [m/s] at its time of validity (NaN down: horizontal only)
     rotors      (N, 4): measured rotor speeds [rad/s] (held input; ESC telemetry)
     rotor_cmd   (N, 4): rotor speeds implied by the actuator outputs [rad/s] (through the motor lag)
+
+Shown in the recording only (not estimator inputs):
+
+    battery     (N, 3): voltage [V], current [A], remaining charge [0..1] (NaN: not in the log)
+    gps         (N, 5): latitude [deg], longitude [deg], altitude above mean sea level [m], fix type
+                (MAVLink GPS_FIX_TYPE: 0-1 no fix, 2 2D, 3 3D, 4 DGPS, 5 RTK float, 6 RTK fixed),
+                satellites used (NaN: not in the log)
 """
 
 from __future__ import annotations
@@ -100,6 +107,9 @@ class FlightData:
         truth_wind: simulation-only true wind at the vehicle (air-mass velocity NED, m/s).
         autopilot_wind: the autopilot's own wind estimate (air-mass velocity NED, m/s; down NaN
             when it has none).
+        battery, gps: shown in the recording (module docstring), not used by the estimator.
+        gps_origin: (latitude [deg], longitude [deg], altitude [m AMSL]) of :attr:`position`'s origin
+            when the log tells it (PX4 ``vehicle_local_position.ref_*``, DataFlash ``ORGN``), else None.
         in_air: (t, in air?) state changes: landed state, else arming; empty when the log has
             neither (then the vehicle counts as never airborne).
         texts: (t, text, level) events: mode and arming changes, autopilot status texts.
@@ -126,6 +136,9 @@ class FlightData:
     chem: Series = field(default_factory=lambda: _empty(None, "chem"))
     truth_wind: Series = field(default_factory=lambda: _empty(3, "truth"))
     autopilot_wind: Series = field(default_factory=lambda: _empty(3, "autopilot"))
+    battery: Series = field(default_factory=lambda: _empty(3, "battery"))
+    gps: Series = field(default_factory=lambda: _empty(5, "gps"))
+    gps_origin: tuple[float, float, float] | None = None
     in_air: list[tuple[float, bool]] = field(default_factory=list)
     texts: list[tuple[float, str, str]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -137,6 +150,10 @@ class FlightData:
     def all_series(self) -> tuple[Series, ...]:
         return (self.imu, self.attitude, self.velocity, self.rotors, self.rotor_cmd, self.position, self.chem,
                 self.truth_wind, self.autopilot_wind)  # fmt: skip
+
+    def shown_series(self) -> tuple[Series, ...]:
+        """Series only shown in the recording (battery, GPS): not in :attr:`time_range` or :attr:`has_data`."""
+        return (self.battery, self.gps)
 
     @property
     def has_data(self) -> bool:

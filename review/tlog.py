@@ -106,6 +106,7 @@ def _columns(fd: FlightData, col: Collected, order: tuple[int, ...], w_max: floa
     tc.wind_columns(fd, col, ap_comp)
     tc.named_value_columns(fd, col)
     tc.in_air_columns(fd, col)
+    tc.battery_gps_columns(fd, col)
 
 
 def read_tlog(path: Path | str, motor_order: str = "auto", w_max_rad_s: float = 600.0,

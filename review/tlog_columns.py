@@ -8,6 +8,8 @@ Units (MAVLink common.xml and ardupilotmega.xml):
 - ATTITUDE: 3-2-1 Euler angles [rad]; ATTITUDE_QUATERNION q1..q4 = [w, x, y, z].
 - LOCAL_POSITION_NED: m, m/s NED. GLOBAL_POSITION_INT: degE7, mm, cm/s NED. GPS_RAW_INT: degE7,
   mm, cm/s ground speed and cdeg course (horizontal velocity only).
+- SYS_STATUS: voltage_battery mV (UINT16_MAX: unknown), current_battery cA and battery_remaining %
+  (-1: unknown). GPS_RAW_INT also gives fix_type (GPS_FIX_TYPE) and satellites_visible (255: unknown).
 - ESC_STATUS, ESC_TELEMETRY_1_TO_4 (ArduPilot): rpm. RAW_RPM: rpm, one sensor per message.
 - SERVO_OUTPUT_RAW (port 0, servos 1-4), ACTUATOR_OUTPUT_STATUS (actuators 0-3): PWM us or 0..1.
 - WIND_COV: air-mass velocity NED [m/s]. ArduPilot WIND: ``direction`` the wind comes from [deg],
@@ -49,7 +51,8 @@ LANDED_UNDEFINED, LANDED_IN_AIR, LANDED_LANDING = 0, 2, 4
 
 
 def _arr(rows: list[tuple[Any, ...]], width: int) -> np.ndarray:
-    return np.array(rows, dtype=float).reshape(-1, width)
+    """The first ``width`` fields of each row as a float array (N, width)."""
+    return np.array([r[:width] for r in rows], dtype=float).reshape(-1, width)
 
 
 def choose_sources(counts: dict[str, int], family: str) -> dict[str, str]:
@@ -119,6 +122,24 @@ def position_columns(fd: FlightData, col: Collected, src: str) -> None:
         a = a[a[:, 1] >= 3]
         p = geodetic_to_ned(a[:, 2] * 1e-7, a[:, 3] * 1e-7, a[:, 4] * 1e-3)
     fd.position = Series.of(a[:, 0], p, "position")
+
+
+def battery_gps_columns(fd: FlightData, col: Collected) -> None:
+    """SYS_STATUS -> fd.battery (V, A, 0..1); GPS_RAW_INT -> fd.gps (deg, deg, m AMSL, fix type, satellites)."""
+    if col.rows.get("SYS_STATUS"):
+        a = _arr(col.rows["SYS_STATUS"], 4)
+        v = np.column_stack([a[:, 1] * 1e-3, a[:, 2] * 1e-2, a[:, 3] * 1e-2])
+        v[(a[:, 1] <= 0) | (a[:, 1] >= 65535), 0] = np.nan
+        v[a[:, 2] < 0, 1] = np.nan
+        v[a[:, 3] < 0, 2] = np.nan
+        fd.battery = Series.of(a[:, 0], v, "battery")
+        fd.sources["battery"] = "SYS_STATUS"
+    if col.rows.get("GPS_RAW_INT"):
+        a = _arr(col.rows["GPS_RAW_INT"], 8)
+        sats = np.where(a[:, 7] == 255, np.nan, a[:, 7])
+        fd.gps = Series.of(a[:, 0], np.column_stack([a[:, 2] * 1e-7, a[:, 3] * 1e-7, a[:, 4] * 1e-3, a[:, 1], sats]),
+                           "gps")  # fmt: skip
+        fd.sources["gps"] = "GPS_RAW_INT"
 
 
 def _esc_failed_at(col: Collected, t: np.ndarray) -> np.ndarray:
@@ -212,6 +233,7 @@ def in_air_columns(fd: FlightData, col: Collected) -> None:
 
 
 __all__ = [
+    "battery_gps_columns",
     "IMU_SCALE",
     "attitude_columns",
     "choose_sources",

@@ -40,6 +40,7 @@ TOPICS = [
     "vehicle_land_detected",
     "vehicle_status",
     "debug_key_value",
+    "battery_status",
 ]
 #: ULog logging levels (syslog) -> Rerun text levels.
 LOG_LEVELS = {"EMERGENCY": "CRITICAL", "ALERT": "CRITICAL", "CRITICAL": "CRITICAL", "ERROR": "ERROR",
@@ -160,6 +161,11 @@ def _topics(fd: FlightData, data: dict[str, ut.Topic], order: tuple[int, ...], w
         ut.status_topic(fd, d, land_detector=land)
     if (d := data.get("debug_key_value")) is not None:
         ut.chem_topic(fd, d)
+    if (d := data.get("battery_status")) is not None:
+        ut.battery_topic(fd, d)
+    any(ut.gps_topic(fd, n, data[n]) for n in ("vehicle_gps_position", "sensor_gps") if n in data)
+    if (d := data.get("vehicle_local_position")) is not None:
+        ut.gps_origin(fd, d)
 
 
 def read_ulog(path: Path | str, motor_order: str = "quad-x", w_max_rad_s: float = 600.0) -> FlightData:

@@ -15,6 +15,10 @@ Topics (first instance of each; PX4 names and units, already SI and NED/FRD):
     vehicle_status          arming_state (2 = armed; 3 = armed with error before PX4 1.14),
                             nav_state                        -> in-air fallback, mode / arming text
     debug_key_value         key "CHEM", value                -> chemical reading (mg/m^3)
+    battery_status          voltage_v [V], current_a [A], remaining [0..1] (-1: unknown) -> battery
+    vehicle_gps_position / sensor_gps  latitude_deg, longitude_deg, altitude_msl_m (PX4 >= 1.14; before:
+                            lat, lon [1e-7 deg], alt [mm]), fix_type, satellites_used -> gps
+    vehicle_local_position  ref_lat, ref_lon [deg], ref_alt [m] where xy_global -> the GPS track's origin
 
 ESC and output numbers follow PX4's motor order (quad-X by default: 1 FR, 2 RL, 3 FL, 4 RR) and are
 mapped to the project's rotor order. Times: ULog ``timestamp`` (microseconds since boot) in seconds.
@@ -177,8 +181,48 @@ def chem_topic(fd: FlightData, d: Topic) -> None:
         fd.sources["chem"] = "debug_key_value CHEM"
 
 
+def battery_topic(fd: FlightData, d: Topic) -> None:
+    """Voltage [V], current [A] and remaining charge [0..1]; PX4's -1 (and a voltage of 0) mean unknown."""
+    v = cols(d, ["voltage_v", "current_a", "remaining"])
+    if v is None:
+        return
+    v = v.copy()
+    v[v[:, 0] <= 0.0, 0] = np.nan
+    v[v[:, 1] < 0.0, 1] = np.nan  # PX4 logs -1 A when it measures no current
+    v[v[:, 2] < 0.0, 2] = np.nan
+    fd.battery = Series.of(t_of(d), v, "battery")
+    fd.sources["battery"] = "battery_status"
+
+
+def gps_topic(fd: FlightData, name: str, d: Topic) -> bool:
+    """Fixes: latitude, longitude [deg], altitude [m AMSL], fix type, satellites (module docstring)."""
+    pos = cols(d, ["latitude_deg", "longitude_deg", "altitude_msl_m"])
+    if pos is None:
+        raw = cols(d, ["lat", "lon", "alt"])
+        if raw is None:
+            return False
+        pos = raw * np.array([1e-7, 1e-7, 1e-3])
+    n = len(pos)
+    fix = np.asarray(d.get("fix_type", np.full(n, np.nan)), dtype=float)
+    sats = np.asarray(d.get("satellites_used", np.full(n, np.nan)), dtype=float)
+    fd.gps = Series.of(t_of(d), np.column_stack([pos, fix, sats]), "gps")
+    fd.sources["gps"] = name
+    return True
+
+
+def gps_origin(fd: FlightData, d: Topic) -> None:
+    """The local position's origin (ref_lat, ref_lon [deg], ref_alt [m]) once xy_global is set."""
+    ref = cols(d, ["ref_lat", "ref_lon", "ref_alt"])
+    ok = np.asarray(d.get("xy_global", np.zeros(0)), dtype=bool)
+    if ref is not None and len(ok) == len(ref) and ok.any():
+        fd.gps_origin = tuple(float(x) for x in ref[np.nonzero(ok)[0][-1]])  # type: ignore[assignment]
+
+
 __all__ = [
     "NAV_STATES",
+    "battery_topic",
+    "gps_origin",
+    "gps_topic",
     "attitude_topic",
     "chem_topic",
     "cols",
