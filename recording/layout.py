@@ -13,14 +13,18 @@ The layout::
 
     +--------------------------------+------------------------------------+
     | map (north up)                 | phases: mission / strategy / mode  |
+    |                                | altitude (m, up)                   |
     |                                | chemical (log10 mg/m³)             |
-    |                                | wind speed | wind from             |
-    +----------------+---------------+ [wind north/east/down | rotors]    |
-    | 3D             | run summary   |                                    |
-    +----------------+---------------+                                    |
-    | events                         |                                    |
+    +----------------+---------------+ [wind | flight | battery · GPS |   |
+    | 3D             | run summary   |  rotors]: wind speed, wind from,   |
+    +----------------+---------------+  wind north, east, down / velocity,|
+    | events                         |  attitude / voltage, current, ... |
     +--------------------------------+------------------------------------+
 
+Every plot spans the right column's whole width and opens on the same time range (the flight, with
+room on the right for its legend), so a moment lines up across all of them; every plot shows its
+legend. A tab holds only the plots with data (a tab without any is left out); a review opens on the
+flight tab (:attr:`Layout.first_tab`), a simulated run on the wind.
 The plots take the whole height of the right column: at a 1600 x 1000 window a plot needs about
 20 pixels per unit of its value axis before the viewer labels the axis (a wind plot spans ~5 m/s).
 """
@@ -37,17 +41,34 @@ from rerun.blueprint.encodings import TextLogColumn, TimelineColumn
 from recording.style import SCENE_BACKGROUND, TIMELINE
 
 #: Plots: key -> (title, origin, contents below the origin, legend shown). A legend lists the
-#: series by entity path (the markers first) and is cut to the plot's height: only the tall plots
-#: show one; the summary's key and the tooltips name the series of the others.
+#: series by name (the markers' first) in the plot's top right corner, over the room left there.
 PLOTS: dict[str, tuple[str, str, tuple[str, ...], bool]] = {
+    "altitude": ("altitude, m (up, above the start / the log's local origin)", "/flight/altitude", ("**",), True),
     "chem": ("chemical, log10 mg/m³", "/chem", ("log10", "threshold_log10"), True),
-    "speed": ("wind speed, m/s", "/wind/speed", ("**",), False),
-    "direction": ("wind from, ° (0 = north)", "/wind/direction", ("**",), False),
-    "north": ("wind north, m/s", "/wind/north", ("**",), False),
-    "east": ("wind east, m/s", "/wind/east", ("**",), False),
-    "down": ("wind down, m/s", "/wind/down", ("**",), False),
+    "speed": ("wind speed, m/s", "/wind/speed", ("**",), True),
+    "direction": ("wind from, ° (0 = north; unwrapped: may run past 0 / 360)", "/wind/direction", ("**",), True),
+    "north": ("wind north (N), m/s", "/wind/north", ("**",), True),
+    "east": ("wind east (E), m/s", "/wind/east", ("**",), True),
+    "down": ("wind down (D), m/s", "/wind/down", ("**",), True),
+    "velocity": ("ground velocity, m/s (north, east, down)", "/flight/velocity", ("**",), True),
+    "attitude": ("attitude, ° (roll, pitch, yaw; yaw unwrapped)", "/flight/attitude", ("**",), True),
+    "voltage": ("battery voltage, V", "/flight/battery", ("voltage",), True),
+    "current": ("battery current, A", "/flight/battery", ("current",), True),
+    "remaining": ("battery remaining, %", "/flight/battery", ("remaining",), True),
+    "gps": ("GPS fix type · satellites used", "/flight/gps", ("**",), True),
     "rotors": ("rotor speed, rad/s", "/rotors", ("**",), True),
 }
+#: Tabs of plots below the chemical one: name -> plot keys (top to bottom).
+TABS: dict[str, tuple[str, ...]] = {
+    "wind": ("speed", "direction", "north", "east", "down"),
+    "flight": ("velocity", "attitude"),
+    "battery · GPS": ("voltage", "current", "remaining", "gps"),
+    "rotors": ("rotors",),
+}
+#: Tabs shown only when a plot of theirs has data (the others say why a plot is empty).
+OPTIONAL_TABS = ("flight", "battery · GPS")
+#: Plots that appear only with data: no "no data" line is written or shown for them.
+OPTIONAL_PLOTS = frozenset(k for name in OPTIONAL_TABS for k in TABS[name])
 #: Other panels: key -> title.
 PANELS = {"map": "map (north up)", "3d": "3D (NED)", "summary": "run summary", "events": "events",
           "phases": "mission phase · strategy state · flight mode"}  # fmt: skip
@@ -67,6 +88,7 @@ class Layout:
     missing: panel or plot key -> one line saying why it has no data.
     markers: phase marker series exist (``markers/...``; they need fixed value axes).
     top_m: the tallest thing in the scene above the ground [m] (buildings; aims the 3D camera).
+    first_tab: the tab of plots shown first (:data:`TABS`).
     """
 
     bounds_ne: tuple[float, float, float, float] | None = None
@@ -76,6 +98,7 @@ class Layout:
     missing: dict[str, str] = field(default_factory=dict)
     markers: bool = False
     top_m: float = 0.0
+    first_tab: str = "wind"
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -164,6 +187,21 @@ def view_3d(lay: Layout) -> rrb.View:
                              overrides={"/world/trail": _up_to_cursor()})  # fmt: skip
 
 
+def _tabs(lay: Layout) -> rrb.Tabs:
+    """The tabs of :data:`TABS` that have a plot with data (a tab of one plot is that plot); the wind's
+    and rotors' always (their "no data" lines say why), the first tab :attr:`Layout.first_tab` when it is there."""
+    tabs: list[tuple[str, rrb.View | rrb.Container]] = []
+    for name, keys in TABS.items():
+        shown = [k for k in keys if k not in lay.missing] if name in OPTIONAL_TABS else list(keys)
+        if not shown:
+            continue
+        views = [plot_view(k, lay) for k in shown]
+        tabs.append((name, views[0] if len(views) == 1 else rrb.Vertical(*views, name=name)))
+    names = [n for n, _ in tabs]
+    active = names.index(lay.first_tab) if lay.first_tab in names else 0
+    return rrb.Tabs(*(c for _, c in tabs), active_tab=active)
+
+
 def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     """The layout (see the module docstring) for these facts (default: none known yet)."""
     lay = lay or Layout()
@@ -177,15 +215,11 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     summary = rrb.TextDocumentView(origin="/summary", name=PANELS["summary"])
     left = rrb.Vertical(map_view(lay), rrb.Horizontal(view_3d(lay), summary, column_shares=[1, 1]), events,
                         row_shares=[5, 3, 3])  # fmt: skip
-    wind_ned = rrb.Vertical(plot_view("north", lay), plot_view("east", lay), plot_view("down", lay),
-                            name="wind north / east / down")  # fmt: skip
     right = rrb.Vertical(
-        phases, plot_view("chem", lay),
-        rrb.Horizontal(plot_view("speed", lay), plot_view("direction", lay)),
-        rrb.Tabs(wind_ned, plot_view("rotors", lay), active_tab=0),
+        phases, plot_view("altitude", lay), plot_view("chem", lay), _tabs(lay),
         # The phase view shows its three lanes; every plot gets >= 20 px per unit of its value axis; a
         # "no data" line needs no plot's height.
-        row_shares=[1.25, 0.35 if "chem" in lay.missing else 1.0, 1.1, 3.4],
+        row_shares=[1.25, 0.35 if "altitude" in lay.missing else 1.0, 0.35 if "chem" in lay.missing else 1.0, 5.0],
     )  # fmt: skip
     return rrb.Blueprint(
         rrb.Horizontal(left, right, column_shares=[1, 1]),
@@ -196,4 +230,5 @@ def make_blueprint(lay: Layout | None = None) -> rrb.Blueprint:
     )
 
 
-__all__ = ["LEGEND_PAD", "PANELS", "PLOTS", "Layout", "make_blueprint", "map_view", "plot_view", "view_3d"]
+__all__ = ["LEGEND_PAD", "OPTIONAL_PLOTS", "OPTIONAL_TABS", "PANELS", "PLOTS", "TABS", "Layout", "make_blueprint",
+           "map_view", "plot_view", "view_3d"]  # fmt: skip

@@ -6,7 +6,9 @@ percentiles of the series that matter in each plot (truth, estimate, raw, and th
 typical edges) over the flight and pads them, so the early wide band and the spikes run off the edge
 instead of flattening the rest.
 The padding is small (a tenth of the span each side): the viewer labels a value axis only when its
-unit steps are about 20 px apart, and the wind plots are ~110 px tall in a 1000 px window.
+unit steps are about 20 px apart, and the wind plots are ~110 px tall in a 1000 px window. It then
+labels whole units only: a wind plot is widened to hold two whole units at least (a range of
+-0.6..0.6 m/s showed a single label, "0").
 """
 
 from __future__ import annotations
@@ -47,6 +49,29 @@ def robust_range(v: np.ndarray, q: tuple[float, float] = (1.0, 99.0), pad: float
     return round(mid - half, 3), round(mid + half, 3)
 
 
+#: Plots of the flight's own series: key -> (entities, smallest span of the value axis).
+FLIGHT_RANGES: dict[str, tuple[tuple[str, ...], float]] = {
+    "altitude": (("flight/altitude/vehicle", "flight/altitude/gps"), 2.0),
+    "velocity": (tuple(f"flight/velocity/{a}" for a in AXES), 2.0),
+    "attitude": (tuple(f"flight/attitude/{a}" for a in ("roll", "pitch", "yaw")), 20.0),
+    "voltage": (("flight/battery/voltage",), 1.0),
+    "current": (("flight/battery/current",), 2.0),
+    "remaining": (("flight/battery/remaining",), 10.0),
+    "gps": (("flight/gps/fix", "flight/gps/satellites"), 4.0),
+}
+
+
+def two_units(r: tuple[float, float]) -> tuple[float, float]:
+    """``r`` widened to hold two consecutive whole numbers (two labels on the viewer's value axis)."""
+    lo, hi = r
+    mid = math.floor(0.5 * (lo + hi))
+    # k, k + 1 about the middle, whichever pair widens the range least (none: it has two already)
+    k = min((mid - 1, mid), key=lambda j: max(lo - (j - 0.1), 0.0) + max((j + 1.1) - hi, 0.0))
+    if lo <= k and k + 1 <= hi:
+        return r
+    return round(min(lo, k - 0.1), 3), round(max(hi, k + 1.1), 3)
+
+
 def fit_ranges(rec: _HasValues, t_range: tuple[float, float]) -> dict[str, tuple[float, float]]:
     """Plot key (:data:`recording.layout.PLOTS`) -> (low, high) over ``t_range`` [s] (plots without data: none)."""
     t0, t1 = t_range
@@ -62,7 +87,7 @@ def fit_ranges(rec: _HasValues, t_range: tuple[float, float]) -> dict[str, tuple
             pad = 0.1 * (hi - lo)
             r = (round(min(r[0], lo - pad), 3), round(max(r[1], hi + pad), 3))
         if r is not None:
-            out[a] = r
+            out[a] = two_units(r)
     sp = _collect(rec, ("wind/speed/truth", "wind/speed/filtered", "wind/speed/raw", "wind/speed/autopilot"), t0, t1)
     r = robust_range(sp)
     if r is not None:
@@ -83,7 +108,11 @@ def fit_ranges(rec: _HasValues, t_range: tuple[float, float]) -> dict[str, tuple
     r = robust_range(rot, q=(0.5, 99.5), pad=0.1, min_span=20.0)
     if r is not None:
         out["rotors"] = r
+    for key, (entities, span) in FLIGHT_RANGES.items():
+        r = robust_range(_collect(rec, entities, t0, t1), q=(0.5, 99.5), min_span=span)
+        if r is not None:
+            out[key] = r
     return out
 
 
-__all__ = ["fit_ranges", "robust_range"]
+__all__ = ["FLIGHT_RANGES", "fit_ranges", "robust_range", "two_units"]

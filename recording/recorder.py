@@ -11,7 +11,10 @@ Entity paths besides the map and 3D ones (:mod:`recording.scene`)::
     wind/{north,east,down}/band        Scalars: estimate -+ 2 sigma, two rows per sample (one line zig-zagging
                                        between the edges: a band, one legend entry; RrdLog.band pairs them)
     wind/speed/{raw,filtered,truth,autopilot}            horizontal wind speed, m/s
-    wind/direction/{raw,filtered,truth}  from-direction, deg, unwrapped about the first value (no 0/360 jumps)
+    wind/direction/{raw,filtered,truth}  from-direction, deg, unwrapped: each value within 180 deg of the
+                                       series' previous one (the first within 180 deg of the reference), so
+                                       the line never jumps by 360 deg; a turning wind runs past 0 or 360
+    flight/...                         altitude, velocity, attitude, battery, GPS (:mod:`recording.flight_plots`)
     chem/value, chem/threshold         mg/m^3 (the data);  chem/log10, chem/threshold_log10 (the plot)
     rotors/{1,2,3,4}                   rad/s
     extra/<name>                       any other scalar (:meth:`RunRecorder.scalar`)
@@ -41,7 +44,8 @@ import numpy as np
 import rerun as rr
 
 from recording.events import EventsMixin
-from recording.layout import PLOTS, Layout, make_blueprint
+from recording.flight_plots import FLIGHT_SERIES, FlightPlotsMixin
+from recording.layout import OPTIONAL_PLOTS, PLOTS, Layout, make_blueprint
 from recording.phases import MARKER_KINDS
 from recording.ranges import fit_ranges
 from recording.style import (
@@ -69,11 +73,14 @@ BAND_DT = 1.0e-4
 #: every plot's values (rotor speeds stay below 1e4 rad/s), not far beyond: the viewer drops a line
 #: that ends ~1e7 px off its plot (at 1e6 the markers vanished from a 1 m/s wind plot 100 px tall).
 MARKER_SPAN = 1.0e4
+#: Why a plot is empty (the layout shows the line instead), by plot key.
+NO_DATA = {"chem": "no chemical readings", "rotors": "no rotor speeds", "speed": "no wind estimate or truth",
+           "altitude": "no positions", "gps": "no GPS fixes", "remaining": "no remaining charge"}  # fmt: skip
 _MARKERS = {"phase": ("take-off · search · landing", C_MARK_PHASE), "verify": ("verification", C_MARK_VERIFY),
             "declared": ("declared", C_MARK_DECLARED)}  # fmt: skip
 
 
-class RunRecorder(EventsMixin, UrbanSceneMixin):
+class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
     """Writes one run to a ``.rrd`` file (see the module docstring for paths, units and rates).
 
     Args:
@@ -111,6 +118,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         self.chem_threshold: float | None = None
         self._summary: RunSummary | None = None
         self._dir_ref: float | None = None
+        self._dir_last: dict[str, float] = {}  # the last unwrapped value of each direction series
+        self.first_tab = "wind"  # the tab of plots the layout opens on (recording.layout.TABS)
         self._band_up = True
         self._init_events()
         self.rec.send_recording_name(" / ".join(str(s) for s in (scenario, strategy) if s) or "windseek run")
@@ -122,13 +131,14 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
 
     def _send_static(self) -> None:
         """Series names, colours and widths: static, so the rows carry only data."""
-        for a in AXES:
-            self._style(f"wind/{a}/truth", "truth", C_TRUTH, 2.0)
-            self._style(f"wind/{a}/estimate", "estimate", C_EST, 2.0)
-            self._style(f"wind/{a}/autopilot", "autopilot", C_AUTOPILOT, 1.5)
+        for a in AXES:  # the axis in every name: a legend says which component a plot shows
+            k = a[0].upper()
+            self._style(f"wind/{a}/truth", f"truth {k}", C_TRUTH, 2.0)
+            self._style(f"wind/{a}/estimate", f"estimate {k}", C_EST, 2.0)
+            self._style(f"wind/{a}/autopilot", f"autopilot {k}", C_AUTOPILOT, 1.5)
             # The band is one line zig-zagging between its edges (see wind()): never averaged, or the
             # viewer's aggregation of several rows per pixel would fold it onto the estimate.
-            self.log_static(f"wind/{a}/band", rr.SeriesLines(names="±2σ band", colors=[C_BAND], widths=1.0,
+            self.log_static(f"wind/{a}/band", rr.SeriesLines(names=f"±2σ band {k}", colors=[C_BAND], widths=1.0,
                                                              aggregation_policy="Off"))  # fmt: skip
         for q in ("speed", "direction"):
             self._style(f"wind/{q}/filtered", "filtered", C_EST, 2.0)
@@ -146,6 +156,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
             self.log_static(f"markers/{kind}", rr.SeriesLines(names=name, colors=[c], widths=1.5,
                                                               aggregation_policy="Off"))  # fmt: skip
         self.log_static("phases/mission", rr.StateConfiguration(values=list(PHASES), colors=list(PHASE_COLORS)))
+        for entity, (name, c) in FLIGHT_SERIES.items():
+            self._style(entity, name, c, 1.5)
 
     def _style(self, entity: str, name: str, color: tuple[int, int, int], width: float) -> None:
         self.log_static(entity, rr.SeriesLines(names=name, colors=[color], widths=width))
@@ -185,14 +197,17 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         """The from-direction [deg] the direction plot is centred on (default: the first value logged)."""
         self._dir_ref = float(from_deg)
 
-    def _unwrap(self, deg: float | None) -> float | None:
-        """A from-direction [deg] within 180 deg of the reference (no jumps between 359 and 0)."""
+    def _unwrap(self, name: str, deg: float | None) -> float | None:
+        """A from-direction [deg] of series ``name`` within 180 deg of its previous value (the first
+        within 180 deg of the reference): consecutive values never jump by 360 deg."""
         if deg is None or not math.isfinite(float(deg)):
             return None
         if self._dir_ref is None:
             self._dir_ref = float(deg) % 360.0
-        ref = self._dir_ref
-        return ref + ((float(deg) - ref + 180.0) % 360.0) - 180.0
+        ref = self._dir_last.get(name, self._dir_ref)
+        out = ref + ((float(deg) - ref + 180.0) % 360.0) - 180.0
+        self._dir_last[name] = out
+        return out
 
     def wind_speed_dir(self, t: float, speed_raw: float | None, dir_raw_deg: float | None,
                        speed_filt: float | None = None, dir_filt_deg: float | None = None,
@@ -203,7 +218,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         for name, v in (("raw", speed_raw), ("filtered", speed_filt), ("truth", truth_speed)):
             self._push(f"wind/speed/{name}", t, v)
         for name, d in (("truth", truth_dir_deg), ("filtered", dir_filt_deg), ("raw", dir_raw_deg)):
-            self._push(f"wind/direction/{name}", t, self._unwrap(d))
+            self._push(f"wind/direction/{name}", t, self._unwrap(name, d))
         self._maybe_flush(t)
 
     def autopilot_wind(self, t: float, wind_ned: VecLike) -> None:
@@ -304,11 +319,16 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
             lay.t_range = (round(t0, 2), round(max(t1, t0 + 1.0), 2))
             lay.y_ranges = fit_ranges(self, lay.t_range)
         lay.missing = dict(self.missing)
+        lay.first_tab = self.first_tab
         for key, entities in (("chem", ("chem/log10",)), ("rotors", ("rotors/1",)),
-                              ("speed", ("wind/speed/truth", "wind/speed/raw", "wind/speed/autopilot"))):  # fmt: skip
+                              ("speed", ("wind/speed/truth", "wind/speed/raw", "wind/speed/autopilot")),
+                              *((k, tuple(e for e in FLIGHT_SERIES if e.startswith(f"flight/{g}/"))) for k, g in
+                                (("altitude", "altitude"), ("velocity", "velocity"), ("attitude", "attitude"),
+                                 ("gps", "gps"))),
+                              *((k, (f"flight/battery/{k}",)) for k in ("voltage", "current", "remaining")),
+                              ):  # fmt: skip
             if key not in lay.missing and not any(self.has_series(e) for e in entities):
-                lay.missing[key] = {"chem": "no chemical readings", "rotors": "no rotor speeds"}.get(
-                    key, "no wind estimate or truth")
+                lay.missing[key] = NO_DATA.get(key, f"no {key} in this recording")
         for a in AXES:
             if "speed" in lay.missing and a not in lay.missing:
                 lay.missing[a] = lay.missing["speed"]
@@ -335,6 +355,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin):
         lay.markers = self._send_markers()
         self.send_furniture(lay.bounds_ne or self.scene_bounds())
         for key, why in lay.missing.items():
+            if key in OPTIONAL_PLOTS:
+                continue  # left out of the layout, not replaced by a line
             title = PLOTS[key][0] if key in PLOTS else key
             self.log_static(f"missing/{key}", rr.TextDocument(f"**{title}**: {why}.", media_type="text/markdown"))
         if self._summary is None:

@@ -59,6 +59,8 @@ from recording.summary import FOUND_RADIUS_M
 Bounds = tuple[float, float, float, float]  # north min, north max, east min, east max [m]
 #: Where the true source's label sits in 3D relative to it (NED, m: above); the declared one's the opposite.
 LABEL_OFFSET_3D = np.array([0.0, 0.0, -4.0])
+#: Radius of the declared source's marker [UI points]: above the vehicle's (5) and the true source's (6).
+DECLARED_PT = 8.0
 
 
 def ui(px: float) -> float:
@@ -266,11 +268,15 @@ class SceneMixin(RecorderBase):
         d = np.asarray(ned, dtype=float).reshape(1, 3)
         self.scene_points.append(d[0, :2])
         label = "declared" if confidence is None else f"declared {100.0 * float(confidence):.0f}%"
-        self.log_at(t, "world/sources/declared", rr.Points3D(d, radii=ui(6.0), colors=[C_DECLARED]))
+        # Larger than the vehicle's marker (5 pt) and drawn over it and the wind arrows on the map, on a
+        # white halo: a declaration right at the vehicle (it declares where it is) stays visible.
+        self.log_at(t, "world/sources/declared", rr.Points3D(d, radii=ui(DECLARED_PT), colors=[C_DECLARED]))
         self.log_at(t, "world/sources/declared/label", rr.Points3D(d - LABEL_OFFSET_3D, radii=ui(0.1),
                                                                    colors=[C_DECLARED], labels=[label]))  # fmt: skip
-        self.log_at(t, "map/sources/declared", rr.Points2D(to_map(d), radii=ui(6.0), colors=[C_DECLARED],
-                                                           draw_order=21.0))  # fmt: skip
+        self.log_at(t, "map/sources/declared/halo", rr.Points2D(to_map(d), radii=ui(DECLARED_PT + 2.5),
+                                                                colors=[(255, 255, 255)], draw_order=44.0))  # fmt: skip
+        self.log_at(t, "map/sources/declared", rr.Points2D(to_map(d), radii=ui(DECLARED_PT), colors=[C_DECLARED],
+                                                           draw_order=45.0))  # fmt: skip
         self.log_at(t, "map/sources/declared/label", rr.Points2D(to_map(d) + np.array([0.0, FOUND_RADIUS_M + 3.0]),
                                                                  radii=ui(0.1), colors=[C_DECLARED], labels=[label],
                                                                  draw_order=41.0))  # fmt: skip

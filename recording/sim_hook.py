@@ -7,6 +7,7 @@ rounded to a whole number of mode ticks):
     vehicle pose + path, true wind arrow    vehicle_hz (25 Hz)
     true wind per axis, speed, from-dir     series_hz (25 Hz)
     rotor speeds (truth, rad/s)             series_hz
+    altitude (truth, m up above the start)  series_hz
     chemical reading (sim.chem.latest)      every new reading (the sensor's own rate)
     plume at flight altitude (map, 3D)      slice_hz (0.5 Hz)
     plume on the vertical plane along the   slice_hz
@@ -243,6 +244,7 @@ def record_simulation(
             speed, from_deg = wind_speed_from_deg(wind)
             recorder.wind_speed_dir(t_wind, None, None, truth_speed=speed, truth_dir_deg=from_deg)
             recorder.rotors(t, s.x[13:17])
+            recorder.altitude(t, float(start[2] - pos[2]))  # up, above the start point
         reading = s.chem.latest if s.chem is not None else None
         if reading is not None and reading.t != last["chem_t"]:
             last["chem_t"] = reading.t

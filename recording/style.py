@@ -31,6 +31,9 @@ C_BAND: tuple[int, int, int, int] = (255, 127, 14, 60)
 C_RAW: Rgb = (150, 150, 150)  # grey
 C_THRESH: Rgb = (214, 39, 40)  # red: the detection threshold
 C_AUTOPILOT: Rgb = (44, 160, 44)  # green: an autopilot's own wind estimate (reviews)
+#: Three components of one quantity (velocity north / east / down, roll / pitch / yaw).
+C_AXES3: tuple[Rgb, Rgb, Rgb] = ((31, 119, 180), (44, 160, 44), (214, 39, 40))
+C_GPS: Rgb = (140, 86, 75)  # brown: GPS fixes (altitude, track), apart from the position estimate
 C_ROTORS: tuple[Rgb, ...] = ((228, 26, 28), (55, 126, 184), (77, 175, 74), (152, 78, 163))
 C_SOURCE: Rgb = (200, 0, 0)  # the true source
 C_DECLARED: Rgb = (0, 140, 60)  # the declared source and its credible region
@@ -162,9 +165,10 @@ def posterior_image(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
 
 
 __all__ = [
-    "AXES", "C_AUTOPILOT", "C_BAND", "C_BUILDING", "C_BUILDING_EDGE", "C_BUILDING_MAP", "C_DECLARED", "C_EST",
-    "C_FENCE", "C_FIELD_ARROW", "C_FURNITURE", "C_MAP_EST", "C_MAP_TRUTH", "C_MARK_DECLARED", "C_MARK_PHASE",
-    "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH", "C_TRAIL_3D", "C_TRUTH", "C_VEHICLE",
-    "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT", "TEXT_LEVELS", "TIMELINE", "VecLike",
-    "conc_image", "log_colormap", "log_scale", "posterior_image", "speed_colormap", "state_color",
+    "AXES", "C_AUTOPILOT", "C_AXES3", "C_BAND", "C_BUILDING", "C_BUILDING_EDGE", "C_BUILDING_MAP", "C_DECLARED",
+    "C_EST", "C_FENCE", "C_FIELD_ARROW", "C_FURNITURE", "C_GPS", "C_MAP_EST", "C_MAP_TRUTH", "C_MARK_DECLARED",
+    "C_MARK_PHASE", "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH", "C_TRAIL_3D",
+    "C_TRUTH", "C_VEHICLE", "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT", "TEXT_LEVELS",
+    "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_image", "speed_colormap",
+    "state_color",
 ]  # fmt: skip

@@ -64,6 +64,8 @@ class RunSummary:
     missing: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     extra: dict[str, str] = field(default_factory=dict)
+    #: False for a run without a search (a flight log review): no search tables, no plume notes.
+    search: bool = True
 
     # ------------------------------------------------------------------ derived
     @property
@@ -137,6 +139,9 @@ class RunSummary:
         lines += [f"- {x}" for x in self._key_lines()]
         lines += [f"- {k}: {v}" for k, v in self.extra.items()]
         lines += ["", "#### Times (vehicle clock, s)", ""]
+        if not self.search:
+            lines += _table(("armed", "disarmed"), [(_f(self.t_arm_s), _f(self.t_disarm_s))])
+            return "\n".join(self._tail(lines, REVIEW_NOTES)) + "\n"
         lines += _table(("armed", "search start", "declared", "disarmed"),
                         [(_f(self.t_arm_s), _f(self.t_search_s), _f(self.t_declared_s), _f(self.t_disarm_s))])
         lines += ["", "#### Path (horizontal, m)", ""]
@@ -148,10 +153,13 @@ class RunSummary:
             lines += _table(("#", "start (s)", "duration (s)", "outcome"),
                             [(str(i + 1), _f(v.get("t_start_s")), _f(v.get("duration_s")),
                               v.get("outcome") or "running") for i, v in enumerate(self.verifications)])  # fmt: skip
+        return "\n".join(self._tail(lines, READING_NOTES)) + "\n"
+
+    def _tail(self, lines: list[str], reading: tuple[str, ...]) -> list[str]:
+        """What is missing, then the notes and how to read the recording."""
         if self.missing:
             lines += ["", "#### Missing from this recording", ""] + [f"- {m}" for m in self.missing]
-        lines += ["", "#### Reading it", ""] + [f"- {n}" for n in (*self.notes, *READING_NOTES)]
-        return "\n".join(lines) + "\n"
+        return lines + ["", "#### Reading it", ""] + [f"- {n}" for n in (*self.notes, *reading)]
 
     def _key_lines(self) -> list[str]:
         """The headline figures, one short line each."""
@@ -201,6 +209,18 @@ READING_NOTES = (
 )
 
 
+#: How to read a flight log review's recording (no search, no plume).
+REVIEW_NOTES = (
+    READING_NOTES[0],
+    "Flight: altitude (m up: the log's local position and, in brown, the GPS on the same origin), and in "
+    "the flight tab ground velocity north / east / down and roll / pitch / yaw (deg); battery and GPS fix "
+    "in their own tab; every plot names its series in its legend. Vertical lines mark take-off and landing.",
+    "Wind: our estimate orange inside its light orange ±2σ band (trusted samples only), the autopilot's own "
+    "estimate green.",
+    "Map: north up; the flown path (local position), the GPS fixes as a brown track.",
+)
+
+
 def _table(head: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     out += ["| " + " | ".join(str(c).replace("|", "/") for c in r) + " |" for r in rows]
@@ -218,4 +238,4 @@ def _finite(x: Any) -> Any:
     return x
 
 
-__all__ = ["FOUND_RADIUS_M", "READING_NOTES", "RunSummary"]
+__all__ = ["FOUND_RADIUS_M", "READING_NOTES", "REVIEW_NOTES", "RunSummary"]

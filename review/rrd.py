@@ -13,6 +13,8 @@
                                           wind plots so that a take-off transient is not read as wind
     chem/value                            chemical reading, mg/m^3
     rotors/{1..4}                         rotor speeds, rad/s (measured, or implied)
+    flight/..., map/gps                   altitude, velocity, attitude, battery, GPS and the GPS track
+                                          (:mod:`review.rrd_flight`); the layout opens on them
     log/events                            mode, arming and autopilot messages
     log/review                            what was present, missing and not trusted
 
@@ -38,6 +40,8 @@ from recording.style import AXES
 from recording.summary import RunSummary
 from review.estimate import EstimatorTrack
 from review.flight import FlightData, Series
+from review.rrd_flight import write_flight
+from review.summary import model_notes
 
 UNTRUSTED = "untrusted_wind_m_s"
 
@@ -66,7 +70,7 @@ def time_origin(fd: FlightData, track: EstimatorTrack | None = None) -> float:
     """The log clock's time [s] that the recording counts from: the whole seconds before the earliest
     time stamp of anything written (data, events, in-air changes, estimates); 0 for an empty log."""
     firsts = (
-        [s.t[0] for s in fd.all_series() if len(s)]
+        [s.t[0] for s in (*fd.all_series(), *fd.shown_series()) if len(s)]
         + ([min(t for t, *_ in fd.texts)] if fd.texts else [])  # min() of nothing raises: no in-air state
         + ([min(t for t, _ in fd.in_air)] if fd.in_air else [])
         + ([track.t[0]] if track is not None and len(track.t) else [])
@@ -85,7 +89,7 @@ def shifted(fd: FlightData, track: EstimatorTrack | None, dt: float) -> tuple[Fl
         return fd, track
     fd2 = replace(fd, in_air=[(t - dt, a) for t, a in fd.in_air], texts=[(t - dt, x, lv) for t, x, lv in fd.texts])
     for name in ("imu", "attitude", "velocity", "rotors", "rotor_cmd", "position", "chem", "truth_wind",
-                 "autopilot_wind"):  # fmt: skip
+                 "autopilot_wind", "battery", "gps"):  # fmt: skip
         setattr(fd2, name, _shift(getattr(fd, name), dt))
     tr2 = None if track is None else replace(track, t=track.t - dt, segment_start=track.segment_start - dt)
     return fd2, tr2
@@ -183,12 +187,15 @@ def write_rrd(fd: FlightData, track: EstimatorTrack | None, ok: np.ndarray | Non
         rot = fd.rotors_display
         for i in decimate(rot.t, dt):
             rec.rotors(float(rot.t[i]), rot.v[i])
+        write_flight(rec, fd, dt)
+        rec.first_tab = "flight"  # a log is looked at for its flight first (altitude, velocity, attitude)
         if len(fd.position):
             rec.set_scene([fd.position.v[0][:2]])
         rec.summary(RunSummary(kind=f"flight log review ({fd.kind} from {fd.autopilot}, {fd.duration_s:.1f} s)",
                                scenario=fd.path.name, wind_source="our estimator re-run offline on the logged "
                                "sensors" if track is not None and len(track.t) else "none: wind not estimated",
-                               missing=list(missing), outcome=outcome_text(figure),
+                               missing=list(missing), outcome=outcome_text(figure), search=False,
+                               notes=model_notes(figure),
                                extra={"clock": origin_text(origin), "inputs": used or "none"}))  # fmt: skip
 
 

@@ -114,6 +114,20 @@ def _wind_lines(s: dict[str, Any]) -> list[str]:
     return lines
 
 
+def model_notes(figure: dict[str, Any] | None) -> list[str]:
+    """The force model's caveat and its verdict on this log, as the command line prints them (and the
+    recording's summary carries them), from :func:`summarize`'s result."""
+    if not figure:
+        return []
+    out = [str(figure["model"])] if figure.get("model") else []
+    fit = figure.get("model_fit") or {}
+    if fit:
+        verdict = ("fits this vehicle" if fit.get("model_fits") else
+                   fit.get("model_note") or "not judged (too little steady flight)")  # fmt: skip
+        out.append(f"model in use: {fit.get('model')} ({fit.get('model_source')}): {verdict}")
+    return out
+
+
 def format_summary(s: dict[str, Any]) -> str:
     """The summary as a few human-readable lines."""
     if not s.get("usable", True):
@@ -136,13 +150,7 @@ def format_summary(s: dict[str, Any]) -> str:
     if s.get("imu_gap_cuts"):
         lines.append(f"imu: {s['imu_gap_cuts']} gap(s) of more than 5 s in the IMU while airborne: a fresh filter "
                      "(and its settling time) after each")  # fmt: skip
-    if s.get("model"):
-        lines.append(s["model"])
-    fit = s.get("model_fit") or {}
-    if fit:
-        verdict = ("fits this vehicle" if fit.get("model_fits") else
-                   fit.get("model_note") or "not judged (too little steady flight)")  # fmt: skip
-        lines.append(f"model in use: {fit.get('model')} ({fit.get('model_source')}): {verdict}")
+    lines += model_notes(s)
     if s["wind_figure"]:
         lines += _wind_lines(s)
     else:
@@ -153,4 +161,4 @@ def format_summary(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["format_summary", "missing_inputs", "summarize"]
+__all__ = ["format_summary", "missing_inputs", "model_notes", "summarize"]
