@@ -155,11 +155,12 @@ def test_blueprint_layout_and_ranges(sim_run: tuple[Simulation, RrdLog]) -> None
     assert ("2D", "map") in views and ("3D", "world") in views
     assert ("StateTimeline", "phases") in views and ("TextDocument", "summary") in views
     assert ("TextLog", "log") in views
-    for origin in ("wind/north", "wind/east", "wind/down", "wind/speed", "wind/direction", "chem", "rotors"):
+    for origin in ("wind/north", "wind/east", "wind/down", "wind/speed", "wind/direction", "chem", "rotors",
+                   "flight/altitude"):
         assert ("TimeSeries", origin) in views, origin
     # Every plot opens on the whole run, with room on the right for the legends.
     ranges = log.blueprint_time_ranges()
-    assert len(ranges) == 8  # 7 plots and the phase lanes
+    assert len(ranges) == 9  # 8 plots (the altitude's too; no velocity, attitude, battery, GPS) and the phase lanes
     for t0, t1 in ranges:
         assert t0 == pytest.approx(0.0) and t1 == pytest.approx(14.98 + LEGEND_PAD * 14.98, abs=0.05)
     assert 0.25 <= LEGEND_PAD <= 0.4  # a legend (~180 px) clear of the data in a plot half a 1600 px window wide

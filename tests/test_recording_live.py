@@ -186,4 +186,4 @@ def test_demo_rewrite_keeps_the_data_and_carries_the_printed_summary(flight: tup
     for e, c in (("wind/north/estimate", "Scalars:scalars"), ("chem/value", "Scalars:scalars"),
                  ("markers/phase", "Scalars:scalars"), ("world/vehicle", "Transform3D:translation")):
         assert len(after.column(e, c)[0]) == len(before.column(e, c)[0]) > 0, e
-    assert after.blueprint_count == 1 and after.blueprint_time_ranges() == ranges and len(ranges) == 8
+    assert after.blueprint_count == 1 and after.blueprint_time_ranges() == ranges and len(ranges) == 9
