@@ -1,6 +1,13 @@
-"""The autopilot's own wind estimate beside windseek's UKF on the same flight, both against windseek's truth.
+"""The autopilots' own wind estimates beside windseek's UKF on the same flight, all against windseek's truth.
 
-ArduCopter (``--model JSON``, windseek's parameter file) hovers at 10 m in GUIDED for ``--hover`` simulated
+**PX4** (``--autopilot px4``): PX4 SITL (airframe 10016, windseek's parameters) with windseek as its simulator
+over HIL (lockstep as fast as PX4 answers) hovers at 10 m after an arm + take-off through pymavlink, with EKF2's
+multirotor wind estimation on as its documentation says: ``EKF2_DRAG_CTRL 1``, ``EKF2_BCOEF_X/Y`` 115.3 kg/m^2,
+``EKF2_MCOEF`` 0.055 1/s (the same measured coefficients); EKF2's WIND_COV reaches windseek on PX4's payload
+link (component 1: scored as the autopilot's), ``windseek estimator`` runs on PX4's ground-station link.
+
+**ArduPilot** (``--autopilot ardupilot``): ArduCopter (``--model JSON``, windseek's parameter file) hovers
+at 10 m in GUIDED for ``--hover`` simulated
 seconds in windseek's blade-element world, with EKF3's multirotor wind estimation configured as its
 documentation says: drag fusion on with the paper's vehicle's ballistic and momentum drag coefficients
 (``EK3_DRAG_BCOEF_X/Y`` 115.3 kg/m^2, ``EK3_DRAG_MCOEF`` 0.055 1/s, measured on windseek's truth by
@@ -13,8 +20,9 @@ second after which the 1-s horizontal error stays under 1 m/s for 5 s). ``paper-
 23 s of the scenario, before ArduCopter has booted and taken off: here it is moved to ``--step-at`` s of
 world time (a copy of the scenario file with that change).
 
-Usage: ``WINDSEEK_ARDUPILOT_BIN=.../arducopter python benchmarks/autopilot_wind.py [--scenarios paper-s1,open-field]
-[--seeds 1000-1002] [--hover 120] [--step-at 110] [--keep DIR]``.
+Usage: ``WINDSEEK_ARDUPILOT_BIN=.../arducopter WINDSEEK_PX4_BIN=.../px4 python benchmarks/autopilot_wind.py
+[--autopilot ardupilot|px4] [--scenarios paper-s1,open-field] [--seeds 1000-1002] [--hover 120] [--step-at 110]
+[--keep DIR]``.
 """
 
 from __future__ import annotations
@@ -46,8 +54,9 @@ from sitl.ardupilot.process import ArduCopterSitl, ardupilot_binary, free_instan
 from sitl.scenario import load_scenario  # noqa: E402
 from wire.dialect import mavlink as M  # noqa: E402, N812
 
-#: EKF3's multirotor drag model for nasa-quad (benchmarks/drag_coefficients.py on the blade-element truth).
+#: EKF3's and EKF2's multirotor drag model for nasa-quad (benchmarks/drag_coefficients.py on the blade-element truth).
 EKF3_DRAG = {"EK3_DRAG_BCOEF_X": 115.3, "EK3_DRAG_BCOEF_Y": 115.3, "EK3_DRAG_MCOEF": 0.055}
+EKF2_DRAG = {"EKF2_DRAG_CTRL": 1, "EKF2_BCOEF_X": 115.3, "EKF2_BCOEF_Y": 115.3, "EKF2_MCOEF": 0.055}
 
 
 def scenario_file(name: str, step_at: float, out: Path) -> str:
@@ -110,11 +119,54 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
             _stop(est)
             ap.stop()
             _stop(ws)
-    s = json.loads((out / "windseek.json").read_text())
-    return {"scenario": scenario, "seed": seed, "ukf": figures(s["wind_series_1s"], s["wind_coverage_95_horizontal"],
-                                                              args.step_at if scenario == "paper-s1" else None),
-            "ekf3": figures(s["autopilot_wind"]["series_1s"], s["autopilot_wind"]["coverage_95_horizontal"],
-                            args.step_at if scenario == "paper-s1" else None)}  # fmt: skip
+    return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf3")
+
+
+def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out: Path) -> dict[str, Any]:
+    from px4_lockstep import _Telemetry
+
+    from sitl.hil.px4_process import Px4Sitl
+    from sitl.hil.px4_process import free_instance as px4_instance
+    from sitl.hil.px4_process import ports as px4_ports
+
+    out.mkdir(parents=True, exist_ok=True)
+    n = px4_instance()
+    p = px4_ports(n)
+    sc = scenario_file(scenario, args.step_at, out)
+    env = {f"PX4_PARAM_{k}": f"{v:g}" for k, v in EKF2_DRAG.items()}
+    with open(out / "windseek.log", "wb") as wl, open(out / "estimator.log", "wb") as el:
+        ws = subprocess.Popen(_cli("sitl", sc, "--px4", "--px4-port", str(p["sim"]), "--px4-free", "--seed", str(seed),
+                                   "--exit-summary", str(out / "windseek.json")),
+                              cwd=REPO, stdout=wl, stderr=subprocess.STDOUT)  # fmt: skip
+        px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0, extra_env=env).start()
+        est = subprocess.Popen(_cli("estimator", "--connect", f"udpout://127.0.0.1:{p['gcs']}", "--esc-component",
+                                    "158", "--imu-average", "2", "--json", "--link-timeout", "60",
+                                    "--connect-timeout", "120"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)
+        tel = _Telemetry(p["api"])
+        try:
+            end, sent = time.monotonic() + 1200.0, -1e9
+            while tel.t_px4 < args.step_at - 30.0 + args.hover:
+                if time.monotonic() > end:
+                    raise RuntimeError("the hover did not reach its end time")
+                if tel.alt < 0.5 and time.monotonic() - sent > 10.0 and tel.t_px4 > 10.0:
+                    home = tel.home_amsl if tel.home_amsl is not None else load_scenario(sc).sensors.home.alt_m
+                    tel.command(400, 1, 0, 0, 0, 0, 0, 0)  # arm
+                    tel.command(22, 0, 0, 0, math.nan, math.nan, math.nan, home + 10.0)  # take off to 10 m
+                    sent = time.monotonic()
+                time.sleep(0.2)
+        finally:
+            tel.close()
+            _stop(est)
+            _stop(ws)
+            px4.stop()
+    return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf2")
+
+
+def _rows(scenario: str, seed: int, s: dict[str, Any], args: argparse.Namespace, who: str) -> dict[str, Any]:
+    step = args.step_at if scenario == "paper-s1" else None
+    return {"scenario": scenario, "seed": seed,
+            "ukf": figures(s["wind_series_1s"], s["wind_coverage_95_horizontal"], step),
+            who: figures(s["autopilot_wind"]["series_1s"], s["autopilot_wind"]["coverage_95_horizontal"], step)}
 
 
 def figures(series: list[list[float]], coverage: float | None, step_at: float | None) -> dict[str, Any]:
@@ -150,31 +202,37 @@ def main() -> int:
     ap.add_argument("--step-at", type=float, default=110.0, help="world time of paper-s1's wind step [s]")
     ap.add_argument("--speedup", type=float, default=5.0)
     ap.add_argument("--keep", default=None)
+    ap.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot")
     args = ap.parse_args()
-    binary = ardupilot_binary()
+    if args.autopilot == "px4":
+        from sitl.hil.px4_process import px4_binary
+
+        binary, run, who, what = px4_binary(), trial_px4, "ekf2", f"PX4 hover, EKF2 {EKF2_DRAG}"
+    else:
+        binary, run, who, what = ardupilot_binary(), trial, "ekf3", f"ArduCopter hover, EKF3 {EKF3_DRAG}"
     if binary is None:
-        print("set WINDSEEK_ARDUPILOT_BIN to a built arducopter", file=sys.stderr)
+        print("set WINDSEEK_ARDUPILOT_BIN / WINDSEEK_PX4_BIN to the autopilot's SITL build", file=sys.stderr)
         return 2
     root = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="autopilot_wind_"))
-    print(f"ArduCopter hover, EKF3 {EKF3_DRAG} vs windseek's UKF; logs in {root}; load {os.getloadavg()[0]:.1f}")
+    print(f"{what} vs windseek's UKF; logs in {root}; load {os.getloadavg()[0]:.1f}")
     rows = []
     for scenario in args.scenarios.split(","):
         for seed in _seeds(args.seeds):
-            r = trial(binary, scenario, seed, args, root / f"{scenario}-{seed}")
+            r = run(binary, scenario, seed, args, root / f"{scenario}-{seed}")
             rows.append(r)
             print(json.dumps(r), flush=True)
     for scenario in args.scenarios.split(","):
         rs = [r for r in rows if r["scenario"] == scenario]
-        for who in ("ukf", "ekf3"):
-            f = [r[who] for r in rs if r[who].get("seconds")]
+        for name in ("ukf", who):
+            f = [r[name] for r in rs if r[name].get("seconds")]
             if not f:
-                print(f"{scenario:<12} {who:<5} no estimates scored")
+                print(f"{scenario:<12} {name:<5} no estimates scored")
                 continue
             rm = np.sqrt(np.mean([np.square(x["rmse_ned"]) for x in f], axis=0))
             cov = [x["coverage_95_h"] for x in f if x["coverage_95_h"] is not None]
             conv = [x["converge_after_step_s"] for x in f if scenario == "paper-s1"]
             dirs = np.mean([x["direction_error_deg"] for x in f])
-            print(f"{scenario:<12} {who:<5} RMSE 1-s N {rm[0]:.2f} E {rm[1]:.2f} D {rm[2]:.2f} horizontal "
+            print(f"{scenario:<12} {name:<5} RMSE 1-s N {rm[0]:.2f} E {rm[1]:.2f} D {rm[2]:.2f} horizontal "
                   f"{math.hypot(rm[0], rm[1]):.2f} m/s; direction {dirs:.1f} deg; "
                   f"coverage {np.mean(cov) if cov else float('nan'):.2f}; converge {conv}")  # fmt: skip
     return 0
