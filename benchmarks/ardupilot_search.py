@@ -38,8 +38,12 @@ from toolchain import numba_cache  # noqa: E402 - before any kernel module
 numba_cache.configure()
 from px4_search import _cli, _seeds, _stop, collect, report  # noqa: E402 - one scoring for both autopilots
 
+from sitl.ardupilot.params import PARAMS_FILE  # noqa: E402
 from sitl.ardupilot.process import ArduCopterSitl, ardupilot_binary, free_instance, ports  # noqa: E402
 from sitl.scenario import load_scenario  # noqa: E402
+
+#: EKF3's multirotor wind estimation for nasa-quad (``--autopilot-wind``; benchmarks/drag_coefficients.py).
+EKF3_DRAG = {"EK3_DRAG_BCOEF_X": 115.3, "EK3_DRAG_BCOEF_Y": 115.3, "EK3_DRAG_MCOEF": 0.055}
 
 
 def _home(scenario: str) -> str:
@@ -63,8 +67,12 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
         deadline = time.monotonic() + 90.0
         while b"JSON physics on UDP" not in (out / "windseek.log").read_bytes() and time.monotonic() < deadline:
             time.sleep(0.1)
+        params = [PARAMS_FILE]
+        if args.autopilot_wind:
+            params.append(out / "ekf3_drag.parm")
+            params[-1].write_text("".join(f"{k} {v:g}\n" for k, v in EKF3_DRAG.items()))
         ap = ArduCopterSitl(binary, n, out / "ardupilot", out / "ardupilot.log", _home(args.scenario),
-                            speedup=args.speedup).start()  # fmt: skip
+                            speedup=args.speedup, params=params).start()  # fmt: skip
         est = subprocess.Popen(_cli("estimator", "--connect", f"tcpout://127.0.0.1:{p['gcs']}", "--esc-component",
                                     "158", "--json", "--link-timeout", "60", "--connect-timeout", "120",
                                     "--vehicle", args.vehicle),
@@ -94,6 +102,8 @@ def main() -> int:
     ap.add_argument("--wall-limit", type=float, default=900.0, help="wall seconds per mission")
     ap.add_argument("--keep", default=None, help="keep every run's logs under this directory")
     ap.add_argument("--vehicle", default="nasa_quad", help="the estimators' vehicle file (name or path)")
+    ap.add_argument("--autopilot-wind", action="store_true", help="EKF3's multirotor wind estimation on (drag "
+                    "fusion with the measured coefficients): its WIND is scored beside the estimator's")
     args = ap.parse_args()
     binary = ardupilot_binary()
     if binary is None:

@@ -51,6 +51,8 @@ numba_cache.configure()
 from sitl.hil.px4_process import Px4Sitl, free_instance, ports, px4_binary  # noqa: E402
 
 FOUND_M = 5.0
+#: EKF2's multirotor wind estimation for nasa-quad (``--autopilot-wind``; benchmarks/drag_coefficients.py).
+EKF2_DRAG = {"EKF2_DRAG_CTRL": 1, "EKF2_BCOEF_X": 115.3, "EKF2_BCOEF_Y": 115.3, "EKF2_MCOEF": 0.055}
 
 
 def _cli(*args: str) -> list[str]:
@@ -93,7 +95,8 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
         ws = subprocess.Popen(_cli("sitl", args.scenario, "--px4", "--px4-port", str(p["sim"]), "--px4-free",
                                    "--seed", str(seed), "--exit-summary", str(out / "windseek.json")),
                               cwd=REPO, stdout=f["windseek.log"], stderr=subprocess.STDOUT, env=env)  # fmt: skip
-        px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0).start()
+        extra = {f"PX4_PARAM_{k}": f"{v:g}" for k, v in EKF2_DRAG.items()} if args.autopilot_wind else None
+        px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0, extra_env=extra).start()
         est = subprocess.Popen(_cli("estimator", "--connect", f"udpout://127.0.0.1:{p['gcs']}", "--esc-component",
                                     "158", "--imu-average", "2", "--json", "--link-timeout", "60",
                                     "--connect-timeout", "120", "--vehicle", args.vehicle),
@@ -184,7 +187,10 @@ def collect(seed: int, out: Path) -> dict[str, Any]:
             "rmse_ned_10s": s.get("wind_rmse_ned_after_10s_m_s"),
             "scored_10s": s.get("wind_estimates_scored_after_10s", 0),
             "lockstep_speed": s.get("lockstep_speed"), "timeouts": s.get("lockstep_timeouts"),
-            "crashed": s.get("crashed")}  # fmt: skip
+            "crashed": s.get("crashed"), "rmse_h_1s": s.get("wind_rmse_1s_horizontal_m_s"),
+            "coverage_95_h": s.get("wind_coverage_95_horizontal"),
+            "autopilot_rmse_h_1s": (s.get("autopilot_wind") or {}).get("rmse_1s_horizontal_m_s"),
+            "autopilot_coverage_95_h": (s.get("autopilot_wind") or {}).get("coverage_95_horizontal")}  # fmt: skip
 
 
 def _seeds(text: str) -> list[int]:
@@ -199,6 +205,8 @@ def main() -> int:
     ap.add_argument("--strategy", default="surge-cast")
     ap.add_argument("--wall-limit", type=float, default=900.0, help="wall seconds per mission")
     ap.add_argument("--keep", default=None, help="keep every run's logs under this directory")
+    ap.add_argument("--autopilot-wind", action="store_true", help="EKF2's multirotor wind estimation on (drag "
+                    "fusion with the measured coefficients): its WIND_COV is scored beside the estimator's")
     ap.add_argument("--vehicle", default="nasa_quad", help="the estimators' vehicle file (name or path; default: "
                     "nasa-quad, its model identified in-process)")  # fmt: skip
     ap.add_argument("--identify", metavar="FILE", default=None, help="first identify the vehicle through PX4 in the "
@@ -276,6 +284,12 @@ def report(rows: list[dict[str, Any]]) -> None:
         if n_sc:
             print(f"WIND_COV RMSE vs truth (pooled over {n_sc} {what} estimates): N {pooled[0]:.3f} "
                   f"E {pooled[1]:.3f} D {pooled[2]:.3f} m/s, horizontal {math.hypot(pooled[0], pooled[1]):.3f} m/s")
+    for key, who in (("rmse_h_1s", "windseek's estimator"), ("autopilot_rmse_h_1s", "the autopilot's own estimate")):
+        v = [r[key] for r in rows if r.get(key) is not None]
+        if v:
+            cov = [r[k] for r in rows if (k := key.replace("rmse_h_1s", "coverage_95_h")) and r.get(k) is not None]
+            print(f"{who}: horizontal RMSE of 1-s means median {np.median(v):.2f} m/s ({min(v):.2f}-{max(v):.2f}, "
+                  f"{len(v)} flights); 95 % coverage median {np.median(cov) if cov else math.nan:.2f}")  # fmt: skip
     print(f"lockstep speed: median {np.median([r['lockstep_speed'] or 0 for r in rows]):.2f}x; lockstep timeouts: "
           f"{sum(r['timeouts'] or 0 for r in rows)}; crashes: {sum(bool(r['crashed']) for r in rows)}; load "
           f"{os.getloadavg()[0]:.1f}")  # fmt: skip
