@@ -10,6 +10,15 @@ lives when the kernel is defined): the ``windseek`` command line, the test suite
 (``tests/conftest.py``), the benchmarks and the campaign workers do. A program that skips it still
 works: numba then caches next to the sources, with the staleness caveat above.
 ``NUMBA_CACHE_DIR`` in the environment wins over both.
+
+Numba files a kernel's cache under a folder named by a hash of its source file's *absolute* directory,
+so a second checkout of the same sources (a fresh clone: CI, a worktree) compiled every kernel again,
+1-2 minutes of the test suite, and two test processes compiling the same kernel at once stalled the
+one whose simulation thread did it for tens of seconds. :func:`configure` therefore also puts, in front
+of numba's own, a locator that names the folder by the file's path *relative to the project* (the cache
+folder is already keyed by the kernels' contents, and numba checks each file's content hash itself), so
+every checkout of the same sources shares one compiled cache (:mod:`toolchain.numba_locator`, given to
+numba through its ``NUMBA_CACHE_LOCATOR_CLASSES`` setting).
 """
 
 from __future__ import annotations
@@ -20,6 +29,10 @@ import re
 import sys
 from pathlib import Path
 
+#: numba's cache locators, in order (``NUMBA_CACHE_LOCATOR_CLASSES``): the project-relative one first, then
+#: numba's own (as numba lists them) for code outside the project.
+LOCATORS = ("toolchain.numba_locator.ProjectCacheLocator,UserProvidedCacheLocator,InTreeCacheLocator,"
+            "UserWideCacheLocator,IPythonCacheLocator,ZipCacheLocator")
 #: Packages whose kernels are cached (files that mention numba).
 KERNEL_PACKAGES = ("sitl", "vehicle", "estimator", "mission")
 _configured: str | None = None
@@ -57,8 +70,16 @@ def configure() -> str:
         import numba
 
         numba.config.CACHE_DIR = path  # type: ignore[attr-defined]
+    # numba's own hook for cache locators (read when numba is imported, so set before it): ours first.
+    if "NUMBA_CACHE_LOCATOR_CLASSES" not in os.environ:
+        os.environ["NUMBA_CACHE_LOCATOR_CLASSES"] = LOCATORS
+    if "numba" in sys.modules:
+        import numba
+
+        numba.config.CACHE_LOCATOR_CLASSES = os.environ["NUMBA_CACHE_LOCATOR_CLASSES"]  # type: ignore[attr-defined]
     early = sorted(m for m in sys.modules if m.split(".")[0] in KERNEL_PACKAGES and "." in m)
     if any(m.startswith(("sitl.world", "sitl.autopilot", "vehicle.", "estimator.")) for m in early):
         print(f"windseek: numba cache configured after kernel modules were imported ({early[0]}, ...)",
               file=sys.stderr)  # fmt: skip
     return path
+
