@@ -18,8 +18,10 @@ venv: $(BIN)/.installed
 demo: venv
 	$(BIN)/windseek demo
 
+# Two test processes (pytest-xdist, work stealing): the end-to-end tests mostly wait on paced clocks, so
+# two of them share the 2 cores well; each worker hands out ports from its own slice (tests/link_support.py).
 test: venv
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal --durations=15
 
 # The fast suite alone: everything but the end-to-end tests (processes, MAVSDK, MAVProxy).
 test-fast: venv
