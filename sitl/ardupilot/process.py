@@ -21,15 +21,12 @@ a parameter file in the working directory, last in ``--defaults``).
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
 import socket
-import subprocess
 from pathlib import Path
-from typing import IO, Any
 
 from sitl.ardupilot.params import PARAMS_FILE, speedup_params
+from sitl.autopilot_process import AutopilotProcess
 
 ENV_BIN = "WINDSEEK_ARDUPILOT_BIN"
 ENV_DEFAULTS = "WINDSEEK_ARDUPILOT_DEFAULTS"
@@ -83,7 +80,7 @@ def free_instance(first: int = 11, last: int = 60) -> int:
     raise RuntimeError(f"no free ArduPilot instance in {first}..{last}")
 
 
-class ArduCopterSitl:
+class ArduCopterSitl(AutopilotProcess):
     """One ArduCopter SITL process with windseek as its JSON physics, stopped with SIGTERM then SIGKILL.
 
     Args:
@@ -98,10 +95,9 @@ class ArduCopterSitl:
     def __init__(self, binary: Path, instance: int, workdir: Path, log: Path, home: str, speedup: float = 1.0,
                  params: list[Path] | None = None, extra_args: list[str] | None = None,
                  model: str = "JSON") -> None:  # fmt: skip
+        super().__init__(workdir, log)
         self.binary = Path(binary)
         self.instance = int(instance)
-        self.workdir = Path(workdir)
-        self.log_path = Path(log)
         base = copter_defaults(self.binary)
         if base is None:
             raise FileNotFoundError(f"ArduPilot's copter.parm not found from {binary}: set {ENV_DEFAULTS}")
@@ -112,42 +108,6 @@ class ArduCopterSitl:
         self.args = [str(self.binary), "--model", model, "-I", str(self.instance), "--speedup", f"{speedup:g}",
                      "--home", home, "--defaults", ",".join(str(f) for f in files), "--serial0", "tcp:0",
                      "--sim-port-out", str(self.ports["json"]), *(extra_args or [])]  # fmt: skip
-        self.proc: subprocess.Popen[bytes] | None = None
-        self._log: IO[bytes] | None = None
 
-    def start(self) -> ArduCopterSitl:
-        self.workdir.mkdir(parents=True, exist_ok=True)
+    def prepare(self) -> None:
         self.speedup_file.write_text("".join(f"{n} {v:g}\n" for n, v in speedup_params(self._speedup)))
-        self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.proc = subprocess.Popen(self.args, cwd=self.workdir, stdin=subprocess.DEVNULL, stdout=self._log,
-                                     stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
-        return self
-
-    def running(self) -> bool:
-        return self.proc is not None and self.proc.poll() is None
-
-    def stop(self, timeout_s: float = 10.0) -> int | None:
-        """SIGTERM, then SIGKILL after ``timeout_s``; returns the exit code."""
-        p = self.proc
-        if p is not None and p.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(p.pid, signal.SIGTERM)
-            try:
-                p.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(p.pid, signal.SIGKILL)
-                p.wait(timeout_s)
-        if self._log is not None:
-            self._log.close()
-            self._log = None
-        return None if p is None else p.returncode
-
-    def log_text(self) -> str:
-        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
-
-    def __enter__(self) -> ArduCopterSitl:
-        return self.start()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.stop()

@@ -16,15 +16,13 @@ PX4 answers only the first client of each UDP link for the rest of its run.
 
 from __future__ import annotations
 
-import contextlib
 import fcntl
 import os
-import signal
 import socket
 import subprocess
 from pathlib import Path
-from typing import IO, Any
 
+from sitl.autopilot_process import AutopilotProcess
 from sitl.hil.px4_params import px4_env
 
 ENV_BIN = "WINDSEEK_PX4_BIN"
@@ -74,7 +72,7 @@ def free_instance(first: int = 11, last: int = 60) -> int:
     raise RuntimeError(f"no free PX4 instance in {first}..{last}")
 
 
-class Px4Sitl:
+class Px4Sitl(AutopilotProcess):
     """One PX4 SITL process (``px4 -d -i N -w WORKDIR ROMFS``), stopped with SIGTERM then SIGKILL.
 
     Args:
@@ -86,10 +84,9 @@ class Px4Sitl:
 
     def __init__(self, binary: Path, instance: int, workdir: Path, log: Path, sih: bool = False, speed: float = 1.0,
                  logging: bool = False, extra_env: dict[str, str] | None = None) -> None:  # fmt: skip
+        super().__init__(workdir, log)
         self.binary = Path(binary)
         self.instance = int(instance)
-        self.workdir = Path(workdir)
-        self.log_path = Path(log)
         env = {k: v for k, v in os.environ.items() if not k.startswith("PX4_")}
         if sih:
             env.update(SIH_ENV)
@@ -100,37 +97,8 @@ class Px4Sitl:
         env.update(extra_env or {})
         self.env = env
         self.ports = ports(self.instance)
-        self.proc: subprocess.Popen[bytes] | None = None
-        self._log: IO[bytes] | None = None
-
-    def start(self) -> Px4Sitl:
-        self.workdir.mkdir(parents=True, exist_ok=True)
-        self._log = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
-        romfs = self.binary.parent.parent / "etc"
-        self.proc = subprocess.Popen([str(self.binary), "-d", "-i", str(self.instance), "-w", str(self.workdir),
-                                      str(romfs)], cwd=self.workdir, env=self.env, stdin=subprocess.DEVNULL,
-                                     stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)  # fmt: skip
-        return self
-
-    def running(self) -> bool:
-        return self.proc is not None and self.proc.poll() is None
-
-    def stop(self, timeout_s: float = 10.0) -> int | None:
-        """SIGTERM, then SIGKILL after ``timeout_s``; returns the exit code."""
-        p = self.proc
-        if p is not None and p.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(p.pid, signal.SIGTERM)
-            try:
-                p.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(p.pid, signal.SIGKILL)
-                p.wait(timeout_s)
-        if self._log is not None:
-            self._log.close()
-            self._log = None
-        return None if p is None else p.returncode
+        self.args = [str(self.binary), "-d", "-i", str(self.instance), "-w", str(self.workdir),
+                     str(self.binary.parent.parent / "etc")]  # its ROMFS
 
     def mavlink_stream(self, port: int, message: str, rate_hz: float, timeout_s: float = 10.0) -> str:
         """PX4's ``mavlink stream -u PORT -s MESSAGE -r RATE`` on this instance, through the ``px4-mavlink``
@@ -145,12 +113,3 @@ class Px4Sitl:
             return f"{client.name}: {e}"
         why = (r.stderr or r.stdout).strip()[-200:]
         return "" if r.returncode == 0 else f"{client.name} exit {r.returncode}: {why}"
-
-    def log_text(self) -> str:
-        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
-
-    def __enter__(self) -> Px4Sitl:
-        return self.start()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.stop()
