@@ -20,6 +20,9 @@ second after which the 1-s horizontal error stays under 1 m/s for 5 s). ``paper-
 23 s of the scenario, before ArduCopter has booted and taken off: here it is moved to ``--step-at`` s of
 world time (a copy of the scenario file with that change).
 
+A scenario with a route (``paper-s2``: 30 m upwind and 30 m across at 3 m/s, with holds) is flown as an
+AUTO mission after the take-off (ArduCopter only), and scored over the same time.
+
 Usage: ``WINDSEEK_ARDUPILOT_BIN=.../arducopter WINDSEEK_PX4_BIN=.../px4 python benchmarks/autopilot_wind.py
 [--autopilot ardupilot|px4] [--scenarios paper-s1,open-field] [--seeds 1000-1002] [--hover 120] [--step-at 110]
 [--keep DIR]``.
@@ -72,7 +75,24 @@ def scenario_file(name: str, step_at: float, out: Path) -> str:
     return str(p)
 
 
-def hover(g: CopterGcs, until_s: float) -> None:
+def route_items(sc_path: str) -> list[tuple[float, ...]]:
+    """The scenario's route as ArduCopter mission items (speed, then each waypoint with its hold), [] for a hover."""
+    sc = load_scenario(sc_path)
+    wps = sc.route.waypoints
+    if len(wps) < 2:
+        return []
+    h = sc.sensors.home
+    dn = 1.0 / 111320.0
+    de = dn / math.cos(math.radians(h.lat_deg))
+    items: list[tuple[float, ...]] = [(M.MAV_CMD_DO_CHANGE_SPEED, 0.0, 0.0, 0.0, 1.0, sc.route.cruise_speed_m_s)]
+    for w in wps:
+        n, e, d = w.position_ned
+        items.append((M.MAV_CMD_NAV_WAYPOINT, h.lat_deg + n * dn, h.lon_deg + e * de, -d, w.hold_s))
+    return items
+
+
+def hover(g: CopterGcs, until_s: float, route: list[tuple[float, ...]] | None = None) -> None:
+    """Arm in GUIDED, take off to 10 m, with a ``route`` fly it in AUTO; until ArduCopter's clock reads ``until_s``."""
     hb = g.recv("HEARTBEAT", 60.0, lambda h: h.get_srcComponent() == 1)
     if hb is None:
         raise RuntimeError("no heartbeat from ArduCopter")
@@ -82,6 +102,11 @@ def hover(g: CopterGcs, until_s: float) -> None:
         raise RuntimeError(f"ArduCopter did not arm: {g.text[-5:]}")
     if g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10.0) != 0:
         raise RuntimeError(f"take-off refused: {g.text[-5:]}")
+    if route:
+        if g.recv("GLOBAL_POSITION_INT", 120.0, lambda p: p.relative_alt > 9000) is None:
+            raise RuntimeError("did not reach 9 m")
+        if g.upload_mission(route) != M.MAV_MISSION_ACCEPTED or g.set_mode("AUTO") != 0:
+            raise RuntimeError(f"the route was not accepted: {g.text[-5:]}")
     deadline = time.monotonic() + 1200.0
     while time.monotonic() < deadline:
         m = g.recv("SYSTEM_TIME", 10.0)
@@ -113,7 +138,7 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
                                     "120"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)  # fmt: skip
         g = CopterGcs(p["gcs"])
         try:
-            hover(g, args.step_at - 30.0 + args.hover)
+            hover(g, args.step_at - 30.0 + args.hover, route_items(sc))
         finally:
             g.close()
             _stop(est)

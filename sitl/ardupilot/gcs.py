@@ -145,8 +145,9 @@ class CopterGcs:
             time.sleep(1.0)
         return r
 
-    def upload_mission(self, items: list[tuple[int, float, float, float]], timeout_s: float = 20.0) -> int | None:
-        """(command, lat deg, lon deg, alt m relative) items after a home item 0; the MISSION_ACK type."""
+    def upload_mission(self, items: list[tuple[float, ...]], timeout_s: float = 20.0) -> int | None:
+        """(command, lat deg, lon deg, alt m relative[, param1[, param2]]) items after a home item 0 (param1 of a
+        waypoint: its hold time, s; param2 of DO_CHANGE_SPEED: the speed, m/s); the MISSION_ACK type."""
         sysid = self.m.target_system or 1
         all_items = [(mavlink.MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0), *items]
         with self._cv:
@@ -159,9 +160,9 @@ class CopterGcs:
                 return None
             if r.get_type() == "MISSION_ACK":
                 return int(r.type)
-            cmd, lat, lon, alt = all_items[r.seq]
-            self.send("mission_item_int_send", sysid, 1, r.seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, cmd, 0, 1,
-                      0, 0, 0, 0, int(round(lat * 1e7)), int(round(lon * 1e7)), alt, 0)  # fmt: skip
+            cmd, lat, lon, alt, p1, p2 = (*all_items[r.seq], 0.0, 0.0)[:6]
+            self.send("mission_item_int_send", sysid, 1, r.seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, int(cmd), 0,
+                      1, p1, p2, 0, 0, int(round(lat * 1e7)), int(round(lon * 1e7)), alt, 0)  # fmt: skip
         return None
 
     def close(self) -> None:
