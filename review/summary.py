@@ -94,7 +94,11 @@ def _vals(r: dict[str, float | None]) -> str:
 def _wind_lines(s: dict[str, Any]) -> list[str]:
     above = "" if s.get("min_height_m") is None else f", above {s['min_height_m']:g} m"
     m, sd = s["wind_mean_ned_ms"], s["wind_std_ned_ms"]
-    lines = [f"wind estimate ({s['samples_scored']} of {s['samples_total']} samples: after {s['settle_s']:g} s per "
+    fit = s.get("model_fit") or {}
+    # The live estimator would publish nothing here (ModelFit's verdict): the figure is shown, marked as such.
+    head = ("wind estimate WITHHELD by the model check, shown for reference only (biased by the model error)"
+            if fit and not fit.get("model_fits") and fit.get("model_note") else "wind estimate")  # fmt: skip
+    lines = [f"{head} ({s['samples_scored']} of {s['samples_total']} samples: after {s['settle_s']:g} s per "
              f"segment{above}): mean N {m[0]:.2f} E {m[1]:.2f} D {m[2]:.2f} m/s, std {sd[0]:.2f} {sd[1]:.2f} "
              f"{sd[2]:.2f} m/s; {s['wind_speed_mean_ms']:.2f} m/s from {s['wind_from_mean_deg']:.0f} deg"]  # fmt: skip
     if s.get("rmse_vs_truth_ms"):
