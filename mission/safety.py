@@ -230,7 +230,11 @@ class EstimatorWatch:
     Args:
         max_sigma_m_s: horizontal 1-sigma above which the estimate, once converged, has blown up [m/s].
         burst: rejected inputs within ``window_s`` of vehicle time that count as a burst.
-        input_timeout_s: vehicle seconds without an accepted IMU sample (after the first) = fault.
+        input_timeout_s: vehicle seconds without an accepted IMU sample (after the first) = fault, counted
+            on the estimator's own clock (the newest telemetry it has processed): a worker that lags behind
+            the telemetry on a busy machine has not lost its input.
+        max_lag_s: vehicle seconds the estimator may lag behind the telemetry before that is a fault (its
+            wind is then that old).
     """
 
     #: Rejections that are not faults: inputs that arrive before the filter has its first
@@ -240,8 +244,9 @@ class EstimatorWatch:
                         *(f"{s}:duplicate_or_out_of_order" for s in ("imu", "attitude", "rates", "rotors", "gnss"))})
 
     def __init__(self, max_sigma_m_s: float = 5.0, burst: int = 50, window_s: float = 2.0,
-                 input_timeout_s: float = 2.0) -> None:  # fmt: skip
+                 input_timeout_s: float = 2.0, max_lag_s: float = 10.0) -> None:  # fmt: skip
         self.max_sigma = max_sigma_m_s
+        self.max_lag_s = max_lag_s
         self.burst = burst
         self.window_s = window_s
         self.input_timeout_s = input_timeout_s
@@ -251,9 +256,14 @@ class EstimatorWatch:
         self._imu_n = 0
 
     def check(self, t: float, wind: np.ndarray, cov: np.ndarray, rejected: dict[str, int],
-              imu_accepted: int) -> Abort | None:  # fmt: skip
+              imu_accepted: int, t_processed: float | None = None) -> Abort | None:  # fmt: skip
         """``estimator-fault`` or None. ``t`` vehicle time (s), ``wind`` NED (m/s), ``cov`` (m/s)^2,
-        ``rejected`` the estimator's rejection counters, ``imu_accepted`` its accepted IMU count."""
+        ``rejected`` the estimator's rejection counters, ``imu_accepted`` its accepted IMU count,
+        ``t_processed`` the newest vehicle time the estimator has processed (None: ``t``)."""
+        tp = t if t_processed is None or not math.isfinite(t_processed) else min(t, t_processed)
+        if t - tp > self.max_lag_s:
+            return Abort("estimator-fault", f"the estimator is {t - tp:.1f} s of vehicle time behind the telemetry "
+                         f"(limit {self.max_lag_s:g} s): the machine is too busy for this speed")  # fmt: skip
         if not (np.all(np.isfinite(wind)) and np.all(np.isfinite(cov))):
             return Abort("estimator-fault", "the wind estimate is not finite (NaN/inf)")
         sig_h = math.sqrt(max(float(cov[0, 0] + cov[1, 1]), 0.0))
@@ -271,7 +281,7 @@ class EstimatorWatch:
             return Abort("estimator-fault", f"{n_bad - self._hist[0][1]} estimator inputs rejected within "
                          f"{self.window_s:g} s (most: {worst[0]})")  # fmt: skip
         if imu_accepted != self._imu_n:
-            self._imu_n, self._imu_t = imu_accepted, t
-        elif self._imu_n > 0 and t - self._imu_t > self.input_timeout_s:
-            return Abort("estimator-fault", f"no IMU sample accepted by the estimator for {t - self._imu_t:.1f} s")
+            self._imu_n, self._imu_t = imu_accepted, tp
+        elif self._imu_n > 0 and tp - self._imu_t > self.input_timeout_s:
+            return Abort("estimator-fault", f"no IMU sample accepted by the estimator for {tp - self._imu_t:.1f} s")
         return None

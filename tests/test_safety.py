@@ -70,6 +70,24 @@ def test_estimator_watch_faults() -> None:
     assert "no IMU sample" in ew.check(1.2, w, cov, {}, 10).message
 
 
+def test_an_estimator_lagging_behind_the_telemetry_is_not_an_input_fault_until_it_is_too_late() -> None:
+    """A worker thread starved on a busy machine processes the telemetry late: measured on the vehicle clock
+    of the newest telemetry (a faster-than-real-time world runs it ahead) it looked like an input loss
+    ("no IMU sample accepted for 2.1 s", seen in 2 of 5 PX4 walkthroughs at load 4-5)."""
+    cov, w = np.eye(3) * 0.1, np.array([-5.0, 0.0, 0.0])
+    ew = EstimatorWatch(input_timeout_s=2.0, max_lag_s=10.0)
+    assert ew.check(10.0, w, cov, {}, 100, t_processed=10.0) is None
+    # The telemetry runs 6 s ahead of what the worker has processed; its IMU count is still moving.
+    assert ew.check(16.0, w, cov, {}, 100, t_processed=10.5) is None
+    assert ew.check(18.0, w, cov, {}, 140, t_processed=12.0) is None
+    # On its own clock the worker saw no IMU for 2 s: that is a fault, however far the telemetry is.
+    assert "no IMU sample" in ew.check(19.0, w, cov, {}, 140, t_processed=14.5).message
+    # Lagging more than max_lag_s is a fault of its own, said as such.
+    ew = EstimatorWatch(input_timeout_s=2.0, max_lag_s=10.0)
+    a = ew.check(30.0, w, cov, {}, 500, t_processed=19.0)
+    assert a is not None and "behind the telemetry" in a.message and "too busy" in a.message
+
+
 def test_limits_validation_and_box_text() -> None:
     assert SafetyLimits.box_from_text("10,5,0,-10,-5,-20") == ((-10.0, -5.0, -20.0), (10.0, 5.0, 0.0))
     with pytest.raises(ValueError, match="six numbers"):

@@ -91,7 +91,8 @@ class EstimatedLiveWind:
             return Abort("estimator-fault", snap.withheld)
         if not snap.ready:
             return None
-        return self.watch.check(t, snap.wind_ned, snap.cov_ned, dict(snap.rejected), snap.accepted.get("imu", 0))
+        return self.watch.check(t, snap.wind_ned, snap.cov_ned, dict(snap.rejected), snap.accepted.get("imu", 0),
+                                snap.vehicle_time_s)  # fmt: skip
 
     def describe(self) -> str:
         snap = self.worker.snapshot()
