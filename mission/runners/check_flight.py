@@ -10,8 +10,10 @@ holds, then lands. Units m, m/s, s of vehicle time; NED (the autopilot's local f
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -79,10 +81,7 @@ async def fly_check(cfg: CheckFlightConfig) -> CheckFlightResult:
         if st.armed:
             raise MissionError("the vehicle is already armed: start the check flight on the ground")
         home = st.pos.copy()
-        try:
-            await v.arm()
-        except CommandError as e:
-            raise MissionError(str(e)) from None
+        await _arm(v)
         why = await takeoff_above_home(v, cfg.altitude_m)
         if why is not None:
             res.abort = why
@@ -149,6 +148,24 @@ async def _waypoints(v: MavsdkVehicle, cfg: CheckFlightConfig, home: np.ndarray,
         v.say(f"check flight: waypoint {i + 1} at t = {st.t:.2f} s")
     res.phases["waypoints"] = (t0, st.t)
     return None
+
+
+#: Wall seconds a check flight retries an arming its autopilot refuses (preflight checks settling after boot).
+ARM_RETRY_S = 30.0
+
+
+async def _arm(v: MavsdkVehicle) -> None:
+    """Arm; a refusal is retried once a wall second for :data:`ARM_RETRY_S` (PX4 refuses while its heading
+    estimate settles after boot, "Preflight Fail: heading estimate not stable", seen on a loaded machine)."""
+    end = time.monotonic() + ARM_RETRY_S
+    while True:
+        try:
+            await v.arm()
+            return
+        except CommandError as e:
+            if time.monotonic() > end:
+                raise MissionError(f"{e} (refused for {ARM_RETRY_S:g} s)") from None
+        await asyncio.sleep(1.0)
 
 
 async def _land(v: MavsdkVehicle, cfg: CheckFlightConfig) -> None:
