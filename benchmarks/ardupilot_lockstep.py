@@ -41,7 +41,6 @@ numba_cache.configure()
 from sitl.ardupilot.gcs import CopterGcs  # noqa: E402
 from sitl.ardupilot.process import ArduCopterSitl, ardupilot_binary, free_instance, ports  # noqa: E402
 from sitl.scenario import load_scenario  # noqa: E402
-from wire.dialect import mavlink as M  # noqa: E402, N812
 
 SCENARIO = "open-field"
 
@@ -62,15 +61,7 @@ def _boot_s(g: CopterGcs) -> float:
 def fly_and_measure(gcs_port: int, seconds: float, windows: int, pids: list[int]) -> list[dict[str, Any]]:
     g = CopterGcs(gcs_port)
     try:
-        hb = g.recv("HEARTBEAT", 60.0, lambda h: h.get_srcComponent() == 1)
-        if hb is None:
-            raise RuntimeError("no heartbeat from ArduCopter")
-        g.m.target_system = hb.get_srcSystem()
-        g.request_streams(4)
-        if g.arm_when_ready("GUIDED", 180.0) != 0:
-            raise RuntimeError(f"ArduCopter did not arm: {g.text[-5:]}")
-        if g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10.0) != 0:
-            raise RuntimeError(f"take-off refused: {g.text[-5:]}")
+        g.guided_takeoff(10.0)
         if g.recv("GLOBAL_POSITION_INT", 120.0, lambda p: p.relative_alt > 9000) is None:
             raise RuntimeError("did not reach 9 m")
         out = []

@@ -36,10 +36,12 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
-from px4_search import _cli, _seeds, _stop, collect, report  # noqa: E402 - one scoring for both autopilots
+from px4_search import _cli, _seeds, collect, report  # noqa: E402 - one scoring for both autopilots
 
+from sitl.ardupilot.launch import LISTENING  # noqa: E402
 from sitl.ardupilot.params import PARAMS_FILE  # noqa: E402
 from sitl.ardupilot.process import ArduCopterSitl, ardupilot_binary, free_instance, ports  # noqa: E402
+from sitl.autopilot_process import stop_process, wait_for_text  # noqa: E402
 from sitl.scenario import load_scenario  # noqa: E402
 
 #: EKF3's multirotor wind estimation for nasa-quad (``--autopilot-wind``; benchmarks/drag_coefficients.py).
@@ -64,9 +66,7 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
                                    "--ardupilot-mavlink", f"127.0.0.1:{p['peripheral']}", "--seed", str(seed),
                                    "--exit-summary", str(out / "windseek.json")),
                               cwd=REPO, stdout=f["windseek.log"], stderr=subprocess.STDOUT, env=env)  # fmt: skip
-        deadline = time.monotonic() + 90.0
-        while b"JSON physics on UDP" not in (out / "windseek.log").read_bytes() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        wait_for_text(out / "windseek.log", LISTENING, ws)
         params = [PARAMS_FILE]
         if args.autopilot_wind:
             params.append(out / "ekf3_drag.parm")
@@ -85,9 +85,9 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
                            cwd=REPO, stdout=f["mission.json"], stderr=f["mission.log"], env=env,
                            timeout=args.wall_limit)  # fmt: skip
         wall = time.monotonic() - wall0
-        _stop(est)
+        stop_process(est)
         ap.stop()  # before windseek: ArduPilot waiting for its physics ignores SIGTERM
-        _stop(ws)
+        stop_process(ws)
     r = collect(seed, out)
     r["wall_s"] = round(wall, 1)
     return r

@@ -49,11 +49,13 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
-from px4_search import _cli, _seeds, _stop  # noqa: E402
+from px4_search import _cli, _seeds  # noqa: E402
 
 from sitl.ardupilot.gcs import CopterGcs  # noqa: E402
+from sitl.ardupilot.launch import LISTENING  # noqa: E402
 from sitl.ardupilot.params import PARAMS_FILE  # noqa: E402
 from sitl.ardupilot.process import ArduCopterSitl, ardupilot_binary, free_instance, ports  # noqa: E402
+from sitl.autopilot_process import stop_process, wait_for_text  # noqa: E402
 from sitl.scenario import load_scenario  # noqa: E402
 from wire.dialect import mavlink as M  # noqa: E402, N812
 
@@ -93,15 +95,7 @@ def route_items(sc_path: str) -> list[tuple[float, ...]]:
 
 def hover(g: CopterGcs, until_s: float, route: list[tuple[float, ...]] | None = None) -> None:
     """Arm in GUIDED, take off to 10 m, with a ``route`` fly it in AUTO; until ArduCopter's clock reads ``until_s``."""
-    hb = g.recv("HEARTBEAT", 60.0, lambda h: h.get_srcComponent() == 1)
-    if hb is None:
-        raise RuntimeError("no heartbeat from ArduCopter")
-    g.m.target_system = hb.get_srcSystem()
-    g.request_streams(4)
-    if g.arm_when_ready("GUIDED", 180.0) != 0:
-        raise RuntimeError(f"ArduCopter did not arm: {g.text[-5:]}")
-    if g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10.0) != 0:
-        raise RuntimeError(f"take-off refused: {g.text[-5:]}")
+    g.guided_takeoff(10.0)
     if route:
         if g.recv("GLOBAL_POSITION_INT", 120.0, lambda p: p.relative_alt > 9000) is None:
             raise RuntimeError("did not reach 9 m")
@@ -127,9 +121,7 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
                                    "--ardupilot-mavlink", f"127.0.0.1:{p['peripheral']}", "--seed", str(seed),
                                    "--exit-summary", str(out / "windseek.json")),
                               cwd=REPO, stdout=wl, stderr=subprocess.STDOUT)  # fmt: skip
-        deadline = time.monotonic() + 90.0
-        while b"JSON physics on UDP" not in (out / "windseek.log").read_bytes() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        wait_for_text(out / "windseek.log", LISTENING, ws)
         h = load_scenario(sc).sensors.home
         ap = ArduCopterSitl(binary, n, out / "ardupilot", out / "ardupilot.log", f"{h.lat_deg:.7f},{h.lon_deg:.7f},"
                             f"{h.alt_m:g},0", speedup=args.speedup, params=[PARAMS_FILE, drag]).start()  # fmt: skip
@@ -141,9 +133,9 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
             hover(g, args.step_at - 30.0 + args.hover, route_items(sc))
         finally:
             g.close()
-            _stop(est)
+            stop_process(est)
             ap.stop()
-            _stop(ws)
+            stop_process(ws)
     return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf3")
 
 
@@ -181,8 +173,8 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
                 time.sleep(0.2)
         finally:
             tel.close()
-            _stop(est)
-            _stop(ws)
+            stop_process(est)
+            stop_process(ws)
             px4.stop()
     return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf2")
 

@@ -33,7 +33,6 @@ import contextlib
 import json
 import math
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -48,6 +47,7 @@ sys.path.insert(0, str(REPO))
 from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
+from sitl.autopilot_process import stop_process  # noqa: E402
 from sitl.hil.px4_process import Px4Sitl, free_instance, ports, px4_binary  # noqa: E402
 
 FOUND_M = 5.0
@@ -57,16 +57,6 @@ EKF2_DRAG = {"EKF2_DRAG_CTRL": 1, "EKF2_BCOEF_X": 115.3, "EKF2_BCOEF_Y": 115.3, 
 
 def _cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "windseek.cli", *args]
-
-
-def _stop(p: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
-    if p.poll() is None:
-        p.send_signal(signal.SIGTERM)
-        try:
-            p.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait(5.0)
 
 
 def _json(path: Path) -> dict[str, Any]:
@@ -109,8 +99,8 @@ def trial(binary: Path, seed: int, args: argparse.Namespace, out: Path) -> dict[
                            cwd=REPO, stdout=f["mission.json"], stderr=f["mission.log"], env=env,
                            timeout=args.wall_limit)  # fmt: skip
         wall = time.monotonic() - wall0
-        _stop(est)
-        _stop(ws)
+        stop_process(est)
+        stop_process(ws)
         px4.stop()
     r = collect(seed, out)
     r["wall_s"] = round(wall, 1)
@@ -140,7 +130,7 @@ def identify(binary: Path, path: Path, args: argparse.Namespace, out: Path) -> d
                                    cwd=REPO, capture_output=True, text=True, timeout=args.wall_limit)  # fmt: skip
                 wall = time.monotonic() - w0
         finally:
-            _stop(ws)
+            stop_process(ws)
     (out / "identify.log").write_text(r.stderr)
     (out / "identify.json").write_text(r.stdout)
     res = _json(out / "identify.json")

@@ -7,10 +7,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +17,9 @@ from typing import Any
 import pytest
 
 from sitl.ardupilot.gcs import COPTER_MODES, CopterGcs  # noqa: F401 - the tests' ground station
+from sitl.ardupilot.launch import LISTENING
 from sitl.ardupilot.process import ENV_BIN, ArduCopterSitl, ardupilot_binary, copter_defaults, free_instance, ports
+from sitl.autopilot_process import stop_process, wait_for_text  # noqa: F401 - the tests' stop
 from sitl.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
@@ -58,17 +58,6 @@ class ApRun:
         return self.windseek_log.read_text(errors="replace") if self.windseek_log.exists() else ""
 
 
-def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5.0)
-
-
 @contextlib.contextmanager
 def ardupilot_with_windseek(tmp: Path, scenario: str = "calm", speedup: float = 5.0, seed: int | None = None,
                             extra: list[str] | None = None, params: list[Path] | None = None
@@ -89,12 +78,7 @@ def ardupilot_with_windseek(tmp: Path, scenario: str = "calm", speedup: float = 
     try:
         # ArduPilot only starts its clock (and its heartbeats) once the physics answers: start it once windseek
         # listens (a cold numba cache can take tens of seconds).
-        deadline = time.monotonic() + 90.0
-        while "JSON physics on UDP" not in (wlog.read_text(errors="replace") if wlog.exists() else ""):
-            if ws.poll() is not None or time.monotonic() > deadline:
-                text = wlog.read_text(errors="replace")[-800:]
-                raise RuntimeError(f"windseek sitl --ardupilot did not start: {text}")
-            time.sleep(0.1)
+        wait_for_text(wlog, LISTENING, ws)
         ap.start()
         yield ApRun(n, p, ap, ws, summary, wlog)
     finally:

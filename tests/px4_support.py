@@ -6,7 +6,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -17,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from sitl.autopilot_process import stop_process
 from sitl.hil.px4_process import ENV_BIN, Px4Sitl, free_instance, ports, px4_binary
 
 REPO = Path(__file__).resolve().parent.parent
@@ -48,17 +48,6 @@ class Px4Run:
         return self.windseek_log.read_text(errors="replace") if self.windseek_log.exists() else ""
 
 
-def _stop(proc: subprocess.Popen[bytes], timeout_s: float = 20.0) -> None:
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5.0)
-
-
 @contextlib.contextmanager
 def px4_with_windseek(tmp: Path, scenario: str = "open-field", speed: float = 0.0, px4_speed: float = 10.0,
                       extra: list[str] | None = None, sih: bool = False,
@@ -84,7 +73,7 @@ def px4_with_windseek(tmp: Path, scenario: str = "open-field", speed: float = 0.
         yield run
     finally:
         if ws is not None:
-            _stop(ws)
+            stop_process(ws)
         px4.stop()
 
 

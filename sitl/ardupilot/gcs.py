@@ -145,6 +145,19 @@ class CopterGcs:
             time.sleep(1.0)
         return r
 
+    def guided_takeoff(self, altitude_m: float, timeout_s: float = 180.0) -> None:
+        """Lock on to the autopilot, ask for its streams, arm in GUIDED when ready and take off to
+        ``altitude_m`` above home; RuntimeError (with its last messages) on the way."""
+        hb = self.recv("HEARTBEAT", 60.0, lambda h: h.get_srcComponent() == 1)
+        if hb is None:
+            raise RuntimeError("no heartbeat from ArduCopter")
+        self.m.target_system = hb.get_srcSystem()
+        self.request_streams(4)
+        if self.arm_when_ready("GUIDED", timeout_s) != 0:
+            raise RuntimeError(f"ArduCopter did not arm: {self.text[-5:]}")
+        if self.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, float(altitude_m)) != 0:
+            raise RuntimeError(f"take-off refused: {self.text[-5:]}")
+
     def upload_mission(self, items: list[tuple[float, ...]], timeout_s: float = 20.0) -> int | None:
         """(command, lat deg, lon deg, alt m relative[, param1[, param2]]) items after a home item 0 (param1 of a
         waypoint: its hold time, s; param2 of DO_CHANGE_SPEED: the speed, m/s); the MISSION_ACK type."""

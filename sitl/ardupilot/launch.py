@@ -27,6 +27,8 @@ from sitl.link.transports import parse_host_port
 from sitl.scenario import load_scenario
 from wire.jsonsafe import json_safe
 
+#: The words of windseek's start line that say it listens for ArduPilot (tests and benchmarks wait for them).
+LISTENING = "as ArduPilot's JSON physics on UDP"
 #: windseek sitl's own autopilot options that do not apply when ArduPilot is the autopilot.
 NOT_WITH_ARDUPILOT = ("udp", "tcp", "serial", "forward", "rrd", "no_udp", "px4")
 
@@ -82,7 +84,7 @@ def run_ardupilot(args: argparse.Namespace) -> int:
     old = {s: signal.signal(s, lambda *_: runner.stop()) for s in (signal.SIGINT, signal.SIGTERM)}
     b = runner.bridge
     periph = "off" if runner.peripheral is None else runner.peripheral.name
-    print(f"windseek sitl: {b.scenario.name} as ArduPilot's JSON physics on UDP {runner.options.host}:{runner.port} "
+    print(f"windseek sitl: {b.scenario.name} {LISTENING} {runner.options.host}:{runner.port} "
           f"(peripheral component 158 on {periph}); start ArduCopter with --model JSON --home {home_arg(b)}",
           flush=True)  # fmt: skip
     try:

@@ -26,7 +26,7 @@ from typing import Any
 
 from sitl.hil.frames import FrameEncoder
 from sitl.hil.messages import heartbeat_peripheral
-from sitl.hil.peripheral import PERIPHERAL_COMPONENT
+from sitl.hil.peripheral import PERIPHERAL_COMPONENT, parse_frames
 from wire.dialect import mavlink
 
 #: ArduPilot SITL's SERIAL2 TCP port of instance 0; instance N adds 10 * N.
@@ -148,16 +148,7 @@ class TcpPeripheral:
             if not data:
                 self._drop()
                 break
-            try:
-                msgs = self._parser.parse_buffer(data) or []
-            except Exception:  # noqa: BLE001 - hostile input is counted, never raised
-                msgs = []
-                self.counters["rx_bad"] += 1
-            for m in msgs:
-                if m.get_type() == "BAD_DATA":
-                    self.counters["rx_bad"] += 1
-                else:
-                    out.append(m)
+            out.extend(parse_frames(self._parser, data, self.counters))
         self.counters["rx_messages"] += len(out)
         return out
 

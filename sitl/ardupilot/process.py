@@ -22,11 +22,10 @@ a parameter file in the working directory, last in ``--defaults``).
 from __future__ import annotations
 
 import os
-import socket
 from pathlib import Path
 
 from sitl.ardupilot.params import PARAMS_FILE, speedup_params
-from sitl.autopilot_process import AutopilotProcess
+from sitl.autopilot_process import AutopilotProcess, ports_free
 
 ENV_BIN = "WINDSEEK_ARDUPILOT_BIN"
 ENV_DEFAULTS = "WINDSEEK_ARDUPILOT_DEFAULTS"
@@ -59,15 +58,7 @@ def ports(instance: int) -> dict[str, int]:
 def instance_free(instance: int) -> bool:
     """True if the ports of instance ``instance`` are free now."""
     p = ports(instance)
-    checks = [(socket.SOCK_STREAM, p[k]) for k in ("gcs", "companion", "peripheral")]
-    checks += [(socket.SOCK_DGRAM, p[k]) for k in ("json", "rc")]
-    for kind, port in checks:
-        with socket.socket(socket.AF_INET, kind) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                return False
-    return True
+    return ports_free([p[k] for k in ("gcs", "companion", "peripheral")], [p["json"], p["rc"]])
 
 
 def free_instance(first: int = 11, last: int = 60) -> int:

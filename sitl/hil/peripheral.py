@@ -43,6 +43,18 @@ PX4_PAYLOAD_PORT = 14280
 PX4_SIM_PORT = 4560
 
 
+def parse_frames(parser: Any, data: bytes, counters: Counter[str]) -> list[Any]:
+    """The messages pymavlink's ``parser`` finds in ``data``; unparsable bytes counted (``rx_bad``), never raised."""
+    try:
+        msgs = parser.parse_buffer(data) or []
+    except Exception:  # noqa: BLE001 - hostile input is counted, never raised
+        counters["rx_bad"] += 1
+        return []
+    good = [m for m in msgs if m.get_type() != "BAD_DATA"]
+    counters["rx_bad"] += len(msgs) - len(good)
+    return good
+
+
 class UdpPeripheral:
     """The peripheral component on a UDP link to a PX4 MAVLink instance at ``target`` (host, port)."""
 
@@ -109,16 +121,7 @@ class UdpPeripheral:
             except OSError:
                 self.counters["rx_errors"] += 1
                 break
-            try:
-                msgs = self._parser.parse_buffer(data) or []
-            except Exception:  # noqa: BLE001 - hostile input is counted, never raised
-                msgs = []
-                self.counters["rx_bad"] += 1
-            for m in msgs:
-                if m.get_type() == "BAD_DATA":
-                    self.counters["rx_bad"] += 1
-                else:
-                    out.append(m)
+            out.extend(parse_frames(self._parser, data, self.counters))
             # A datagram holds whole frames: a partial one is bad, and never carried into the next datagram.
             p = self._parser
             if p.buf_len() > 0:

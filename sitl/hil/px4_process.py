@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import fcntl
 import os
-import socket
 import subprocess
 from pathlib import Path
 
-from sitl.autopilot_process import AutopilotProcess
+from sitl.autopilot_process import AutopilotProcess, ports_free
 from sitl.hil.px4_params import px4_env
 
 ENV_BIN = "WINDSEEK_PX4_BIN"
@@ -54,14 +53,7 @@ def instance_free(instance: int) -> bool:
         except OSError:
             return False
     p = ports(instance)
-    checks = [(socket.SOCK_STREAM, p["sim"])] + [(socket.SOCK_DGRAM, p[k]) for k in ("api", "gcs", "payload", "gimbal")]
-    for kind, port in checks:
-        with socket.socket(socket.AF_INET, kind) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                return False
-    return True
+    return ports_free([p["sim"]], [p[k] for k in ("api", "gcs", "payload", "gimbal")])
 
 
 def free_instance(first: int = 11, last: int = 60) -> int:
