@@ -15,6 +15,8 @@ seconds per wall second, from ArduCopter's SYSTEM_TIME), the CPU per simulated m
 process and the load average; at the end the median per variant with its range and the ratio to the
 peer. The speeds depend on the machine's load (2 shared cores here).
 
+First it prints windseek's own work per frame in-process (no sockets, no second process).
+
 Usage: ``WINDSEEK_ARDUPILOT_BIN=.../build/sitl/bin/arducopter python benchmarks/ardupilot_lockstep.py
 [--seconds 10] [--windows 3] [--rounds 1] [--no-spin]``.
 """
@@ -114,6 +116,24 @@ def run_peer(binary: Path, seconds: float, windows: int, tmp: Path) -> dict[str,
         return {"windows": fly_and_measure(ports(n)["gcs"], seconds, windows, [ap.proc.pid])}
 
 
+def bridge_us_per_frame(frames: int = 20000) -> float:
+    """windseek's own work per ArduPilot frame in-process (servo packet decoded, outputs checked, one tick, the
+    state line), CPU microseconds, after 2,000 warm-up frames: no sockets, no second process."""
+    from sitl.ardupilot.bridge import ArduPilotBridge
+    from sitl.ardupilot.json_protocol import parse_servo_packet, servo_packet
+
+    b = ArduPilotBridge(load_scenario(SCENARIO), say=lambda _: None)
+    raw = servo_packet(1, [1655] * 4 + [0] * 12)
+    for _ in range(2000):
+        b.on_servos(parse_servo_packet(raw))
+        b.step()
+    c0 = time.process_time()
+    for _ in range(frames):
+        b.on_servos(parse_servo_packet(raw))
+        b.step()
+    return 1e6 * (time.process_time() - c0) / frames
+
+
 def _line(label: str, r: dict[str, Any]) -> None:
     for w in r["windows"]:
         cpu = " + ".join(f"{c:.0f}" for c in w["cpu_us_per_sim_ms"])
@@ -133,6 +153,7 @@ def main() -> int:
     if binary is None:
         print("set WINDSEEK_ARDUPILOT_BIN to a built arducopter (build/sitl/bin/arducopter)")
         return 2
+    print(f"windseek's work per frame in-process: {bridge_us_per_frame():.1f} us (CPU)")
     variants: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as td:
         tmp = Path(td)
