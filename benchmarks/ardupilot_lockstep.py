@@ -4,7 +4,7 @@ Per round, one run after the other, each with ArduCopter hovering at 10 m in GUI
 take-off through a pymavlink ground station on SERIAL0 (which reads everything, as MAVProxy does:
 ArduPilot SITL pauses while that queue is full):
 
-1. ``windseek sitl open-field --ardupilot`` (1000 Hz frames, one UDP round trip each) + ArduCopter
+1. ``windseek sitl open-field --ardupilot`` (800 Hz frames, one UDP round trip each) + ArduCopter
    ``--model JSON --speedup 1000`` (as fast as the pair runs) with windseek's parameter file; once with
    windseek spinning between back-to-back frames (the default) and, with ``--no-spin`` too, once sleeping;
 2. the peer: ArduCopter ``--model quad --speedup 1000``: ArduPilot's own multicopter physics inside the

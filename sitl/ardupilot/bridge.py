@@ -1,7 +1,7 @@
 """The world as ArduPilot's JSON physics, one servo packet at a time: plain synchronous code, no I/O.
 
 Each servo packet ArduPilot sends (:mod:`sitl.ardupilot.json_protocol`) advances the world by one
-physics tick (1 ms: 1000 Hz here, 500 Hz in the scenario files) with the rotor speeds its motor
+physics tick (1.25 ms: 800 Hz here, 500 Hz in the scenario files) with the rotor speeds its motor
 outputs command (:mod:`sitl.ardupilot.motors`, checked and, when they cannot be trusted, replaced by windseek's
 safety pilot: :class:`sitl.hil.guard.ControlGuard`), and answers with the state after the tick:
 the IMU sample of that tick (windseek's IMU model: noise, turn-on bias, bias walk) and the truth
@@ -10,10 +10,13 @@ ArduPilot runs in lockstep with the world, at the pace its ``--speedup`` sets.
 
 **The IMU at the physics rate.** ArduCopter reads an IMU sample at every physics frame and refuses
 to arm unless that rate is at least 1.8 times its 400 Hz main loop ("PreArm: Gyro 0 rate 500Hz <
-loop ratex1.8 720Hz" at 500 Hz), so for ArduPilot the world ticks at 1000 Hz and the IMU is sampled
-at every tick (the scenario's is 250 Hz); its white noise per sample is scaled by ``sqrt(1000 /
-250)`` so that its spectral density, and what any filter sees of it, stays the scenario's. Bias and
-bias walk are unchanged. The finer step changes nothing physical (RK4 at 1 ms against 2 ms).
+loop ratex1.8 720Hz" at 500 Hz), so for ArduPilot the world ticks at 800 Hz, two frames per ArduCopter
+loop, and the IMU is sampled at every tick (the scenario's is 250 Hz); its white noise per sample is
+scaled by ``sqrt(800 / 250)`` so that its spectral density, and what any filter sees of it, stays the
+scenario's. Bias and bias walk are unchanged. The finer step changes nothing physical (RK4 at 1.25 ms
+against 2 ms). Why 800 and not more: each frame is two process hand-offs, which cost as much as the
+frame's work, so the lockstep speed is about inversely proportional to the rate (benchmarks/README.md,
+"ArduCopter in the loop": 10.5x at 1000 Hz, 12.9x at 800 Hz on this machine, same load).
 
 **What ArduPilot simulates itself.** The JSON interface carries no GNSS, barometer or magnetometer:
 ArduPilot's SITL derives them from the position and attitude it is sent, with its own ``SIM_GPS*``,
@@ -54,7 +57,7 @@ from wire.dialect import mavlink
 
 #: Physics and IMU rate for ArduPilot [Hz]: ArduCopter's pre-arm check wants the gyro at 1.8x its 400 Hz
 #: main loop (``AP_InertialSensor::pre_arm_check_gyro_backend_rate_hz``), and each frame is one tick.
-PHYSICS_HZ = 1000.0
+PHYSICS_HZ = 800.0  # >= 720 Hz (the check above); 800 = exactly two frames per 400 Hz loop
 
 
 @dataclass

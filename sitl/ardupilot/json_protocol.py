@@ -79,7 +79,7 @@ def servo_packet(frame_count: int, pwm: list[int] | tuple[int, ...], frame_rate:
 
 #: The state line: timestamp and position as doubles (ArduPilot reads them with strtod / ``%lf``), the
 #: rest as float32 (``%f``): 17 and 9 significant digits read back exactly. One format call: this runs
-#: once per ArduPilot frame (1000 a simulated second).
+#: once per ArduPilot frame (800 a simulated second).
 _STATE = ('\n{"timestamp":%.17g,"imu":{"gyro":[%.9g,%.9g,%.9g],"accel_body":[%.9g,%.9g,%.9g]},'
           '"position":[%.17g,%.17g,%.17g],"velocity":[%.9g,%.9g,%.9g],"quaternion":[%.9g,%.9g,%.9g,%.9g]}\n')
 

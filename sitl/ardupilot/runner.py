@@ -38,7 +38,7 @@ from sitl.ardupilot.json_protocol import PacketError, parse_servo_packet
 from wire.dialect import mavlink
 
 MAV_AUTOPILOT_INVALID = 8
-#: Frames between two services of the peripheral link (10 = 20 ms of simulation time).
+#: Frames between two services of the peripheral link (10 = 12.5 ms of simulation time at 800 Hz).
 SERVICE_FRAMES = 10
 #: Rate asked of ArduPilot's WIND message on the peripheral's port [Hz of ArduPilot's clock].
 WIND_HZ = 10.0
