@@ -104,3 +104,46 @@ def accel_batch(
             j = bias_idx[i]
             out[k, i] = f[i] + (sigmas[k, j] if j >= 0 else 0.0)
     return out
+
+
+#: Wind step of the central differences in :func:`unseen_bias_wind_cov` [m/s].
+_DW = 0.2
+
+
+@njit(cache=True)
+def unseen_bias_wind_cov(
+    x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, i_scale: int, fz_ref: float,
+    sigma_b: float, cap: float,
+) -> np.ndarray:  # fmt: skip
+    """Horizontal wind covariance (N, E; (m/s)^2) from an accelerometer bias the filter cannot see.
+
+    At a constant heading a body-fixed horizontal accelerometer bias b (FRD x, y) and a wind change
+    move the measured specific force alike, so the filter reads b as wind: dW = -J^-1 b with
+    J = d f_xy / d W_ne (2 x 2, from the force model by central differences of ``_DW``). With b
+    isotropic of 1-sigma ``sigma_b`` [m/s^2]: cov = sigma_b^2 (J^T J)^-1. Where J is nearly singular
+    (no drag to speak of) each variance is capped at ``cap`` [(m/s)^2].
+    """
+    J = np.empty((2, 2))
+    for col in range(2):
+        xp = x.copy()
+        xm = x.copy()
+        xp[3 + col] += _DW
+        xm[3 + col] -= _DW
+        fp = specific_force(xp, R, rates, w_rot, p, i_scale, fz_ref)
+        fm = specific_force(xm, R, rates, w_rot, p, i_scale, fz_ref)
+        for row in range(2):
+            J[row, col] = (fp[row] - fm[row]) / (2.0 * _DW)
+    # (J^T J)^-1 = J^-1 J^-T: with A = J^T J symmetric 2 x 2.
+    a = J[0, 0] * J[0, 0] + J[1, 0] * J[1, 0]
+    b = J[0, 0] * J[0, 1] + J[1, 0] * J[1, 1]
+    d = J[0, 1] * J[0, 1] + J[1, 1] * J[1, 1]
+    det = a * d - b * b
+    out = np.zeros((2, 2))
+    s2 = sigma_b * sigma_b
+    if det <= 0.0 or s2 * d / det > cap or s2 * a / det > cap:
+        out[0, 0] = out[1, 1] = cap
+        return out
+    out[0, 0] = s2 * d / det
+    out[1, 1] = s2 * a / det
+    out[0, 1] = out[1, 0] = -s2 * b / det
+    return out

@@ -76,6 +76,7 @@ import numpy as np
 from estimator.config import PRESETS, EstimatorConfig
 from estimator.direction import DirectionFilter
 from estimator.gating import InputGate
+from estimator.imu_rate import ImuRate
 from estimator.outputs import EstimatorOutputs, WindEstimate
 from estimator.sigma_kernels import apply_gain, merwe_weights
 from estimator.step_kernels import Work, accel_innovation, predict, velocity_innovation
@@ -148,6 +149,7 @@ class WindEstimator(EstimatorOutputs):
         self._nu_slow = [0.0, 0.0]  # its slow baseline
         self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
         self._dt_last = 0.0
+        self.imu_rate = ImuRate(cfg.accel_noise_rate_hz)  # the accelerometer variance per sample at the stream's rate
         self.transients = 0  # times the transient detector fired
         self.last_nis = math.nan  # the last accelerometer update's normalized innovation squared
         self._R: np.ndarray | None = None  # attitude DCM body->NED
@@ -226,7 +228,7 @@ class WindEstimator(EstimatorOutputs):
             )
         else:
             self._fz_ref, self._fz_seen = float(a[2]), True
-        self._update(a, self._R_accel, "accel")
+        self._update(a, self._R_accel * self.imu_rate.factor(t), "accel")
         self.accepted["imu"] += 1
         self._record_history()
         return True
