@@ -14,6 +14,10 @@ The simulator, estimator and strategies never import rerun; they hand SI/NED dat
 - :mod:`recording.summary`: the run summary the recording carries;
 - :mod:`recording.finalize`: rewrite a finished recording with a new summary (``windseek demo``);
 - :mod:`recording.read`: read a saved ``.rrd`` back as numpy arrays;
+- :mod:`recording.sim_hook`: the simulated world's truth (``record_world``; ``record_simulation``);
+- :mod:`recording.wire_rx`: what arrives on a MAVLink link (estimates, mission, an autopilot's own);
+- :mod:`recording.sitl_link`, :mod:`recording.autopilot_rrd`: ``windseek sitl --rrd`` with the built-in
+  autopilot, and with PX4 or ArduPilot flying;
 """
 
 from recording.recorder import RunRecorder

@@ -92,8 +92,8 @@ def fit_ranges(rec: _HasValues, t_range: tuple[float, float]) -> dict[str, tuple
     r = robust_range(sp)
     if r is not None:
         out["speed"] = (max(0.0, r[0]), r[1])
-    r = robust_range(_collect(rec, ("wind/direction/truth", "wind/direction/filtered", "wind/direction/raw"),
-                              t0, t1), min_span=20.0)  # fmt: skip
+    dirs = ("wind/direction/truth", "wind/direction/filtered", "wind/direction/raw", "wind/direction/autopilot")
+    r = robust_range(_collect(rec, dirs, t0, t1), min_span=20.0)
     if r is not None:
         out["direction"] = r
     chem = _collect(rec, ("chem/log10",), t0, t1)

@@ -11,7 +11,7 @@ Entity paths besides the map and 3D ones (:mod:`recording.scene`)::
     wind/{north,east,down}/band        Scalars: estimate -+ 2 sigma, two rows per sample (one line zig-zagging
                                        between the edges: a band, one legend entry; RrdLog.band pairs them)
     wind/speed/{raw,filtered,truth,autopilot}            horizontal wind speed, m/s
-    wind/direction/{raw,filtered,truth}  from-direction, deg, unwrapped: each value within 180 deg of the
+    wind/direction/{raw,filtered,truth,autopilot}  from-direction, deg, unwrapped: each value within 180 deg of the
                                        series' previous one (the first within 180 deg of the reference), so
                                        the line never jumps by 360 deg; a turning wind runs past 0 or 360
     flight/...                         altitude, velocity, attitude, battery, GPS (:mod:`recording.flight_plots`)
@@ -97,6 +97,9 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
             floor (a reading of 0 is drawn at ``low``).
         arrow_scale_s: wind arrow length per m/s of wind [m / (m/s)].
         recording_id: reuse a recording id (default: a fresh one).
+        estimate_label, autopilot_label: what the legends call windseek's estimate (``estimate N``) and
+            the autopilot's own (``autopilot N``; with PX4 flying ``PX4 EKF2 N``, with ArduCopter
+            ``ArduCopter EKF3 N``).
 
     Use as a context manager, or call :meth:`close` at the end.
     """
@@ -106,7 +109,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
                  live_layout: bool = True,
                  series_flush_s: float = 4.0, trail_min_step_m: float = 0.5,
                  c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
-                 arrow_scale_s: float = 2.0, recording_id: str | None = None) -> None:  # fmt: skip
+                 arrow_scale_s: float = 2.0, recording_id: str | None = None, estimate_label: str = "estimate",
+                 autopilot_label: str = "autopilot") -> None:  # fmt: skip
         super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id,
                          defer_static=not live_layout)  # fmt: skip
         self.trail_min_step_m = float(trail_min_step_m)
@@ -114,6 +118,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         self.arrow_scale_s = float(arrow_scale_s)
         self.blueprint = blueprint
         self.scenario, self.strategy, self.seed = scenario, strategy, seed
+        self.estimate_label, self.autopilot_label = estimate_label, autopilot_label
         self.missing: dict[str, str] = {}
         self.chem_threshold: float | None = None
         self._summary: RunSummary | None = None
@@ -134,8 +139,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         for a in AXES:  # the axis in every name: a legend says which component a plot shows
             k = a[0].upper()
             self._style(f"wind/{a}/truth", f"truth {k}", C_TRUTH, 2.0)
-            self._style(f"wind/{a}/estimate", f"estimate {k}", C_EST, 2.0)
-            self._style(f"wind/{a}/autopilot", f"autopilot {k}", C_AUTOPILOT, 1.5)
+            self._style(f"wind/{a}/estimate", f"{self.estimate_label} {k}", C_EST, 2.0)
+            self._style(f"wind/{a}/autopilot", f"{self.autopilot_label} {k}", C_AUTOPILOT, 1.5)
             # The band is one line zig-zagging between its edges (see wind()): never averaged, or the
             # viewer's aggregation of several rows per pixel would fold it onto the estimate.
             self.log_static(f"wind/{a}/band", rr.SeriesLines(names=f"±2σ band {k}", colors=[C_BAND], widths=1.0,
@@ -145,7 +150,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
             self._style(f"wind/{q}/truth", "truth", C_TRUTH, 2.0)
             # Raw estimates scatter (and directions near 0 deg would zig-zag): points, not a line.
             self.log_static(f"wind/{q}/raw", rr.SeriesPoints(names="raw", colors=[C_RAW], marker_sizes=1.0))
-        self._style("wind/speed/autopilot", "autopilot", C_AUTOPILOT, 1.5)
+        for q in ("speed", "direction"):
+            self._style(f"wind/{q}/autopilot", self.autopilot_label, C_AUTOPILOT, 1.5)
         self._style("chem/value", "reading", C_TRUTH, 1.5)
         self._style("chem/threshold", "threshold", C_THRESH, 1.0)
         self._style("chem/log10", "reading", C_TRUTH, 1.5)
@@ -222,11 +228,16 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         self._maybe_flush(t)
 
     def autopilot_wind(self, t: float, wind_ned: VecLike) -> None:
-        """An autopilot's own wind estimate [m/s, NED air-mass velocity]; NaN components are gaps."""
+        """An autopilot's own wind estimate [m/s, NED air-mass velocity]; NaN components are gaps. Also
+        its horizontal speed and from-direction [deg] (none in a calm below 0.05 m/s: no direction)."""
         t = float(t)
         for k, a in enumerate(AXES):
             self._push(f"wind/{a}/autopilot", t, float(wind_ned[k]))
-        self._push("wind/speed/autopilot", t, math.hypot(float(wind_ned[0]), float(wind_ned[1])))
+        n, e = float(wind_ned[0]), float(wind_ned[1])
+        speed = math.hypot(n, e)
+        self._push("wind/speed/autopilot", t, speed)
+        if speed >= 0.05:
+            self._push("wind/direction/autopilot", t, self._unwrap("autopilot", math.degrees(math.atan2(-e, -n)) % 360))
         self._maybe_flush(t)
 
     def set_chem_threshold(self, threshold_mg_m3: float) -> None:

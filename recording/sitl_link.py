@@ -5,9 +5,11 @@ truth through :func:`recording.sim_hook.record_simulation`, plus what only the w
 (estimate, +-2 sigma band, speed and from-direction raw and low-passed, the estimate arrow at the
 vehicle), the mission's strategy states and declared source (:mod:`wire.names`: the phases, path
 colours and events), the geofence box given on the command line, and at close a run summary from
-the truth. It registers itself on the link's hooks (the endpoint's ``rx_hooks``, the simulation's
-``step_hooks``), which run in the link's own thread, so nothing here needs a lock; the link knows
-nothing of it (the recording listens; nothing in ``sitl`` imports ``recording``).
+the truth. The wire's messages are read by :class:`recording.wire_rx.WireRecorder`, as with PX4 or
+ArduPilot flying (:mod:`recording.autopilot_rrd`). It registers itself on the link's hooks (the
+endpoint's ``rx_hooks``, the simulation's ``step_hooks``), which run in the link's own thread, so
+nothing here needs a lock; the link knows nothing of it (the recording listens; nothing in ``sitl``
+imports ``recording``).
 
 Conventions: SI, NED, wind = air-mass velocity NED; simulation seconds.
 """
@@ -27,20 +29,12 @@ from recording.sim_hook import record_simulation
 from recording.stream import CpuMeter
 from recording.summary import RunSummary
 from recording.tally import FlightTally
-from wire.names import ESTIMATOR_COMPONENT, MISSION_COMPONENT, SRC_CONF, SRC_NAMES, STATE_PREFIX
+from recording.wire_rx import WireRecorder
 
 if TYPE_CHECKING:
     from sitl.link.endpoint import Link
     from sitl.link.runner import SitlLink
     from sitl.simulation import Simulation
-
-#: The autopilot's own (system, component): its STATUSTEXT is not the mission's.
-AUTOPILOT_ID = (1, 1)
-
-
-def _name(msg: Any) -> str:
-    return str(getattr(msg, "name", "")).rstrip("\x00")
-
 
 class LinkRecorder:
     """The simulation's truth and what arrives on the wire (WIND_COV, mission status) into one ``.rrd``.
@@ -90,11 +84,7 @@ class LinkRecorder:
         self.track: deque[tuple[float, float, float, float]] = deque(maxlen=max(1, int(60.0 * rate)))
         self.tally_every = max(1, round(rate / 10.0))  # the path length and phases' tally at 10 Hz
         self._k = -1
-        self.tau_s = 1.0 / (2.0 * math.pi * filter_cutoff_hz)
-        self._filt: np.ndarray | None = None
-        self._t_filt = 0.0
-        self.estimates = 0
-        self.wind_from: tuple[int, int] | None = None
+        self.wire = WireRecorder(self.rec, lambda: sim.t, lambda: sim.x[0:3], filter_cutoff_hz=filter_cutoff_hz)
         sim.step_hooks.append(lambda s: self.meter(self.on_tick, s))
         link.endpoint.rx_hooks.append(lambda msg, lk: self.meter(self.on_message, msg, lk))
 
@@ -121,55 +111,17 @@ class LinkRecorder:
         return np.asarray(self.link.sim.wind.velocity(near[0], pos), dtype=float), -float(pos[2])
 
     def on_message(self, msg: Any, lk: Link) -> None:
-        mtype = msg.get_type()
-        sim, rec = self.link.sim, self.rec
-        src = (msg.get_srcSystem(), msg.get_srcComponent())
-        if mtype == "WIND_COV":
-            t = msg.time_usec * 1e-6
-            wx, wy, wz = float(msg.wind_x), float(msg.wind_y), float(msg.wind_z)
-            if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)):
-                return
-            w = np.array([wx, wy, wz])
-            self.estimates += 1
-            self.wind_from = src
-            sh = math.sqrt(max(float(msg.var_horiz), 0.0) / 2.0)
-            sv = math.sqrt(max(float(msg.var_vert), 0.0))
-            rec.wind(t, est_ned=w, sigma_ned=[sh, sh, sv])
-            rec.wind_arrows(t, sim.x[0:3], None, w)
-            if self._filt is None:
-                self._filt = w[:2].copy()
-            else:
-                a = min(1.0, max(0.0, t - self._t_filt) / self.tau_s)
-                self._filt += a * (w[:2] - self._filt)
-            self._t_filt = t
-            fn, fe = float(self._filt[0]), float(self._filt[1])
-            # From-directions with math (vehicle.frames.from_direction_deg's numpy costs ~40 us a call).
-            rec.wind_speed_dir(t, math.hypot(wx, wy), math.degrees(math.atan2(-wy, -wx)) % 360.0,
-                               math.hypot(fn, fe), math.degrees(math.atan2(-fe, -fn)) % 360.0)  # fmt: skip
-            tr = self.true_wind(t) if self.estimates % 2 == 0 else None  # every other one: the field is costly
-            if tr is not None:
-                self.tally.wind(w, tr[0], tr[1])
-        elif mtype == "STATUSTEXT":
-            if src == AUTOPILOT_ID:
-                return
-            text = str(msg.text).rstrip("\x00")
-            who = {MISSION_COMPONENT: "mission", ESTIMATOR_COMPONENT: "estimator"}.get(src[1], f"{src[0]}:{src[1]}")
-            if text.startswith(STATE_PREFIX):
-                who = "mission"
-            rec.mission_statustext(sim.t, text, who, "WARN" if msg.severity <= 4 else "INFO")
-        elif mtype == "NAMED_VALUE_FLOAT":
-            name = _name(msg)
-            if name in SRC_NAMES or name == SRC_CONF:
-                # The mission stamps its declaration with its own tick time (vehicle time).
-                rec.mission_named_value(msg.time_boot_ms * 1e-3, name, float(msg.value))
+        got = self.wire.on_message(msg)
+        # Every other estimate is scored against the truth: the field's lookup is costly.
+        if got is not None and self.wire.estimates % 2 == 0 and (tr := self.true_wind(got[0])) is not None:
+            self.tally.wind(got[1], tr[0], tr[1])
 
     def summary(self) -> RunSummary:
         """What the SITL knows of the run: truth, the wire's declaration, the phases it saw."""
         rec, ph = self.rec, self.rec.phases
-        src = "none received" if self.wind_from is None else \
-            f"WIND_COV from system {self.wind_from[0]} component {self.wind_from[1]} ({self.estimates} received)"
-        s = RunSummary(kind="windseek sitl (truth and the wire)", scenario=self.link.sim.scenario.name,
-                       strategy=self.strategy, seed=self.link.sim.seed, wind_source=src)  # fmt: skip
+        sim = self.link.sim
+        s = RunSummary(kind="windseek sitl (truth and the wire)", scenario=sim.scenario.name,
+                       strategy=self.strategy, seed=sim.seed, wind_source=self.wire.source_line())  # fmt: skip
         if math.isfinite(ph.t_declared) and math.isfinite(ph.t_arm):
             s.time_to_declaration_s = round(ph.t_declared - ph.t_arm, 2)
         if math.isfinite(ph.t_arm):

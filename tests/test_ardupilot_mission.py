@@ -1,7 +1,7 @@
 """The estimator and the MAVSDK mission runner against ArduCopter SITL flying windseek's world: a real ArduCopter
 built from source (``WINDSEEK_ARDUPILOT_BIN``; skipped without it). ``windseek estimator`` on SERIAL0 and
 ``windseek mission --strategy surge-cast --wind estimated`` on SERIAL1, as ``benchmarks/ardupilot_search.py``
-runs them per seed."""
+runs them per seed; windseek records the run (``--rrd``): ArduCopter EKF3's wind beside the UKF's and the truth."""
 
 from __future__ import annotations
 
@@ -11,15 +11,20 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from ardupilot_support import REPO, ardupilot_with_windseek, stop_process
+
+from recording.read import RrdLog
 
 pytestmark = [pytest.mark.e2e, pytest.mark.ardupilot]
 SPEEDUP = 5.0
 
 
 def test_surge_cast_through_arducopter_finds_the_source_with_the_estimator_beside(tmp_path: Path) -> None:
-    with ardupilot_with_windseek(tmp_path, "open-field-low", speedup=SPEEDUP, seed=7) as run:
+    rrd = tmp_path / "run.rrd"
+    with ardupilot_with_windseek(tmp_path, "open-field-low", speedup=SPEEDUP, seed=7,
+                                 extra=["--rrd", str(rrd), "--rrd-strategy", "surge-cast"]) as run:
         est_log = open(tmp_path / "estimator.log", "wb")  # noqa: SIM115 - closed below
         est = subprocess.Popen([sys.executable, "-m", "windseek.cli", "estimator", "--connect",
                                 f"tcpout://127.0.0.1:{run.ports['gcs']}", "--esc-component", "158", "--json",
@@ -52,3 +57,24 @@ def test_surge_cast_through_arducopter_finds_the_source_with_the_estimator_besid
     assert s["wind_estimates_scored"] > 100, s
     rmse = s["wind_rmse_ned_m_s"]
     assert math.hypot(rmse[0], rmse[1]) < 1.0 and rmse[2] < 0.6, rmse
+    _check_recording(RrdLog(rrd), s)
+
+
+def _check_recording(log: RrdLog, s: dict) -> None:
+    """The recording of that flight: truth, windseek's UKF and ArduCopter EKF3's own wind on the same plots, scored
+    as the exit summary scored them."""
+    t_truth, truth = log.scalars("wind/east/truth")
+    t_est, est = log.scalars("wind/east/estimate")
+    t_ap, ap = log.scalars("wind/east/autopilot")
+    assert len(t_truth) > 100 and len(t_est) > 100 and len(t_ap) > 100, (len(t_truth), len(t_est), len(t_ap))
+    assert log.column("wind/east/autopilot", "SeriesLines:names")[1][-1] in ("ArduCopter EKF3 E", ["ArduCopter EKF3 E"])
+    for e in ("wind/speed/autopilot", "wind/direction/autopilot", "wind/east/band", "world/vehicle", "chem/value"):
+        assert e in log.entity_paths(), e
+    # ArduCopter's estimate as the exit summary scored it: the same messages, the same last one.
+    last = [log.scalars(f"wind/{a}/autopilot")[1][-1] for a in ("north", "east", "down")]
+    assert np.allclose(last, s["autopilot_wind"]["last_estimate_ned_m_s"], atol=1e-3), last
+    assert s["autopilot_wind"]["scored"] > 100 and np.all(np.isfinite(est)) and np.all(np.isfinite(truth))
+    rs = log.summary()
+    assert rs is not None and rs.declared_ned is not None and rs.wind_scored == s["wind_estimates_scored"], rs
+    assert "ArduCopter EKF3 wind vs truth" in rs.extra and "not scored" not in rs.extra["ArduCopter EKF3 wind vs truth"]
+    assert "GUIDED" in [m for _, m in log.states("phases/mode")]

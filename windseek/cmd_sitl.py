@@ -13,6 +13,7 @@ import argparse
 import math
 import signal
 import sys
+from typing import Any
 
 from sitl.link import SerialTransport, SitlLink, TcpServerTransport, UdpTransport
 from sitl.link.transports import Transport, parse_host_port, parse_serial
@@ -97,7 +98,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--tlog", metavar="PATH", help="write every MAVLink frame sent and received to a .tlog "
                    "(8-byte big-endian wall-clock UNIX time in us + frame)")
     g.add_argument("--rrd", metavar="PATH", help="write a Rerun recording: the simulation's truth plus the "
-                   "WIND_COV estimates, mission status and declared source that arrive on the wire")
+                   "WIND_COV estimates, mission status and declared source that arrive on the wire; with --px4 or "
+                   "--ardupilot also the autopilot's own wind estimate (PX4 EKF2's WIND_COV, ArduCopter EKF3's WIND) "
+                   "on the same wind plots, and its flight mode")
     g.add_argument("--rrd-strategy", metavar="NAME", default=None, help="strategy name stored in the recording")
     g.add_argument("--rrd-altitude", metavar="M", default=None, type=_altitude,
                    help="height of the recorded urban wind field's horizontal slice, m above the ground "
@@ -186,6 +189,16 @@ def _attach_wire(link: SitlLink, args: argparse.Namespace) -> list:
     return out
 
 
+def attach_autopilot_rrd(runner: Any, args: argparse.Namespace, autopilot: str) -> list:
+    """--rrd with PX4 or ArduPilot flying: the recorder on the runner's hooks (recording/autopilot_rrd.py)."""
+    if not getattr(args, "rrd", None):
+        return []
+    from recording.autopilot_rrd import AutopilotRecorder
+
+    return [AutopilotRecorder(runner, args.rrd, autopilot, strategy=args.rrd_strategy, geofence_ned=args.geofence,
+                              field_altitude_m=getattr(args, "rrd_altitude", None))]  # fmt: skip
+
+
 def _close_wire(parts: list) -> None:
     for part in parts:
         try:
@@ -196,13 +209,15 @@ def _close_wire(parts: list) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if getattr(args, "px4", False):
+        from recording.autopilot_rrd import PX4_LABEL
         from sitl.hil.launch import run_px4
 
-        return run_px4(args)
+        return run_px4(args, attach=lambda runner: attach_autopilot_rrd(runner, args, PX4_LABEL))
     if getattr(args, "ardupilot", False):
+        from recording.autopilot_rrd import ARDUCOPTER_LABEL
         from sitl.ardupilot.launch import run_ardupilot
 
-        return run_ardupilot(args)
+        return run_ardupilot(args, attach=lambda runner: attach_autopilot_rrd(runner, args, ARDUCOPTER_LABEL))
     link = build(args)
     try:
         wire = _attach_wire(link, args)

@@ -97,6 +97,8 @@ class ArduPilotBridge:
         self.guard = ControlGuard(self.world, self.motors, say, sc.flight, sc.gains, autopilot="ArduPilot")
         self.tick_s = self.world.dt
         self.truth = TruthScore(rate_hz=sc.mode_rate_hz)
+        #: callables(bridge) run at every truth sample (the mode rate), after it: listeners such as a recording.
+        self.step_hooks: list[Callable[[ArduPilotBridge], None]] = []
         self._truth_every = max(1, round(1.0 / (sc.mode_rate_hz * self.tick_s)))
         self.frames = 0
         self._esc_count = 0
@@ -143,6 +145,8 @@ class ArduPilotBridge:
         t0 = float(row[T_TIME])
         if self.frames % self._truth_every == 0:
             self.truth.add(t0, row[T_POS], row[T_WIND])
+            for hook in self.step_hooks:
+                hook(self)
         if t0 >= self._next_wind - 1e-9:
             self._next_wind += 1.0 / TRUE_WIND_HZ
             out.to_companion.extend(hm.true_wind(t0, row[T_WIND]))

@@ -7,6 +7,9 @@
   SITL's ``SERIAL2``, 127.0.0.1:5763.
 - ``--exit-summary PATH``: the summary as JSON at shutdown (wind RMSE of the forwarded WIND_COV, the
   declaration, counters, lockstep speed).
+- ``--rrd PATH``: a Rerun recording, attached by the caller (``attach``: the command line's
+  ``windseek.cmd_sitl``; nothing in ``sitl`` imports ``recording``) to the bridge's ``step_hooks`` and the
+  runner's ``rx_hooks``.
 
 ArduPilot's origin must be windseek's: start ArduCopter with the ``--home`` this prints.
 """
@@ -17,12 +20,14 @@ import argparse
 import json
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from sitl.ardupilot.bridge import ArduPilotBridge
 from sitl.ardupilot.peripheral import ARDUPILOT_SERIAL2_PORT, TcpPeripheral
 from sitl.ardupilot.runner import JsonOptions, JsonRunner
+from sitl.hil.launch import close_all
 from sitl.link.transports import parse_host_port
 from sitl.scenario import load_scenario
 from wire.jsonsafe import json_safe
@@ -30,7 +35,7 @@ from wire.jsonsafe import json_safe
 #: The words of windseek's start line that say it listens for ArduPilot (tests and benchmarks wait for them).
 LISTENING = "as ArduPilot's JSON physics on UDP"
 #: windseek sitl's own autopilot options that do not apply when ArduPilot is the autopilot.
-NOT_WITH_ARDUPILOT = ("udp", "tcp", "serial", "forward", "rrd", "no_udp", "px4")
+NOT_WITH_ARDUPILOT = ("udp", "tcp", "serial", "forward", "no_udp", "px4")
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -74,13 +79,19 @@ def make_runner(args: argparse.Namespace, say: Any) -> JsonRunner:
     return JsonRunner(bridge, JsonOptions(host=host, port=port, spin_s=spin), periph, say)
 
 
-def run_ardupilot(args: argparse.Namespace) -> int:
-    """Serve until SIGINT/SIGTERM; one line per event and a summary line at the end."""
+def run_ardupilot(args: argparse.Namespace, attach: Callable[[JsonRunner], list[Any]] | None = None) -> int:
+    """Serve until SIGINT/SIGTERM; one line per event and a summary line at the end. ``attach(runner)``
+    hooks listeners (a recording) on the runner before it serves and returns them: each is closed at the end."""
 
     def say(text: str) -> None:
         print(f"windseek sitl: {text}", file=sys.stderr, flush=True)
 
     runner = make_runner(args, say)
+    try:
+        parts = attach(runner) if attach is not None else []
+    except Exception:
+        runner.close()
+        raise
     old = {s: signal.signal(s, lambda *_: runner.stop()) for s in (signal.SIGINT, signal.SIGTERM)}
     b = runner.bridge
     periph = "off" if runner.peripheral is None else runner.peripheral.name
@@ -93,6 +104,7 @@ def run_ardupilot(args: argparse.Namespace) -> int:
         for s, h in old.items():
             signal.signal(s, h)
         runner.close()
+        close_all(parts, say)
     d = json_safe(runner.summary())
     if getattr(args, "exit_summary", None):
         p = Path(args.exit_summary)

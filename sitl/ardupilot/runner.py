@@ -84,6 +84,9 @@ class JsonRunner:
         self._stalled = False
         self._said: set[str] = set()
         self._outbox: list[Any] = []
+        #: callables(message) run for every message the peripheral passes on, after
+        #: the truth scored it: listeners such as a recording.
+        self.rx_hooks: list[Callable[[Any], None]] = []
         self._next_wind_ask = 0.0
         self.wall_first = self.wall_last = 0.0
         self.sim_first = 0.0
@@ -226,6 +229,8 @@ class JsonRunner:
             if m.get_type() == "HEARTBEAT" and int(m.autopilot) != MAV_AUTOPILOT_INVALID:
                 self._learn_system(m.get_srcSystem())
             self.bridge.truth.on_message(m)
+            for hook in self.rx_hooks:
+                hook(m)
         if self.ardupilot_system is not None:
             now = time.monotonic()
             p.heartbeat(now)

@@ -80,6 +80,8 @@ class HilBridge:
         self.unix0_us = int(time.time() * 1e6)  # HIL_GPS carries UNIX time (not part of the physics)
         self.state_interval_s = 1.0 / STATE_RATE_HZ
         self.truth = TruthScore(rate_hz=sc.mode_rate_hz)
+        #: callables(bridge) run at every truth sample (the mode rate), after it: listeners such as a recording.
+        self.step_hooks: list[Callable[[HilBridge], None]] = []
         self._truth_every = max(1, round(1.0 / (sc.mode_rate_hz * self.imu_period_s)))  # steps per truth sample
         self.steps = 0
         self._next_state = 0.0
@@ -128,6 +130,8 @@ class HilBridge:
             out.to_px4.append(hm.hil_state_quaternion(row, sc.sensors.home))
         if self.steps % self._truth_every == 0:
             self.truth.add(t0, row[T_POS], row[T_WIND])
+            for hook in self.step_hooks:
+                hook(self)
         mag_new, baro_new = bool(s["mag"]), bool(s["baro"])
         if mag_new:
             self._mag = s["mag"][-1]

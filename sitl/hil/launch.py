@@ -12,6 +12,9 @@
   WIND_COV, the declaration, counters, the lockstep speed realised against the requested pace and the
   steps' throughput); ``--tlog PATH``: every frame both links
   carried.
+- ``--rrd PATH``: a Rerun recording, attached by the caller (``attach``: the command line's
+  ``windseek.cmd_sitl``; nothing in ``sitl`` imports ``recording``) to the bridge's ``step_hooks`` and the
+  runner's ``rx_hooks``.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import argparse
 import json
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +37,7 @@ from wire.jsonsafe import json_safe
 
 HITL_BAUD = 921600
 #: windseek sitl's own autopilot options that do not apply when PX4 is the autopilot.
-NOT_WITH_PX4 = ("udp", "tcp", "serial", "forward", "rrd", "no_udp")
+NOT_WITH_PX4 = ("udp", "tcp", "serial", "forward", "no_udp")
 
 
 def make_runner(args: argparse.Namespace, say: Any) -> HilRunner:
@@ -74,13 +78,30 @@ def _peripheral(spec: str, link: SimLink, instance: int) -> Any:
     return UdpPeripheral(target, instance + 1)
 
 
-def run_px4(args: argparse.Namespace) -> int:
-    """Serve until SIGINT/SIGTERM; print one line per event and a summary line at the end."""
+def close_all(parts: list[Any], say: Callable[[str], None]) -> None:
+    """``close()`` each listener; one that fails is said and does not stop the others."""
+    for part in parts:
+        try:
+            part.close()
+        except Exception as e:  # noqa: BLE001 - one failing listener must not lose the others
+            say(f"could not finish {type(part).__name__}: {e}")
+
+
+def run_px4(args: argparse.Namespace, attach: Callable[[HilRunner], list[Any]] | None = None) -> int:
+    """Serve until SIGINT/SIGTERM; print one line per event and a summary line at the end. ``attach(runner)``
+    hooks listeners (a recording) on the runner before it serves and returns them: each is closed at the end."""
 
     def say(text: str) -> None:
         print(f"windseek sitl: {text}", file=sys.stderr, flush=True)
 
     runner = make_runner(args, say)
+    try:
+        parts = attach(runner) if attach is not None else []
+    except Exception:
+        runner.link.close()
+        if runner.peripheral is not None:
+            runner.peripheral.close()
+        raise
     tlog = _tlog(runner, getattr(args, "tlog", None))
     old = {s: signal.signal(s, lambda *_: runner.stop()) for s in (signal.SIGINT, signal.SIGTERM)}
     b = runner.bridge
@@ -97,6 +118,7 @@ def run_px4(args: argparse.Namespace) -> int:
             runner.peripheral.close()
         if tlog is not None:
             tlog.close()
+        close_all(parts, say)
     d = json_safe(runner.summary())
     if getattr(args, "exit_summary", None):
         p = Path(args.exit_summary)

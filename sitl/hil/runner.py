@@ -105,6 +105,9 @@ class HilRunner:
         self._last_answer_wall = -math.inf
         self._wall0 = self._sim0 = 0.0
         self._timeouts_said = 0
+        #: callables(message) run for every message the peripheral (or, in HITL, PX4's link) passes on, after
+        #: the truth scored it: listeners such as a recording.
+        self.rx_hooks: list[Callable[[Any], None]] = []
 
     # ------------------------------------------------------------------ control
     def stop(self) -> None:
@@ -266,7 +269,7 @@ class HilRunner:
                 self.bridge.set_state_rate(float(m.param2))
         else:
             self.counters["rx_ignored"] += 1
-            self.bridge.truth.on_message(m)  # HITL: what PX4 forwards arrives on this link
+            self._received(m)  # HITL: what PX4 forwards arrives on this link
 
     def _engage(self, lock: bool) -> None:
         t = self.bridge.t
@@ -304,7 +307,13 @@ class HilRunner:
         if self.px4_system is not None or not isinstance(self.link, TcpSimLink):
             p.heartbeat(time.monotonic())
         for m in p.poll():
-            self.bridge.truth.on_message(m)
+            self._received(m)
+
+    def _received(self, m: Any) -> None:
+        """A message the autopilot passed on: scored, then to the listeners."""
+        self.bridge.truth.on_message(m)
+        for hook in self.rx_hooks:
+            hook(m)
 
     # ------------------------------------------------------------------ results
     def speed_line(self) -> str:
