@@ -37,6 +37,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any
 
@@ -61,7 +62,11 @@ def cpu_s(pid: int) -> tuple[float, float]:
 
 class _Telemetry:
     """PX4's API link read continuously in a thread (a socket read only now and then holds a backlog of
-    old messages): the newest PX4 time, relative altitude and system id."""
+    old messages): the newest PX4 time, relative altitude and system id; PX4's answers (mission protocol,
+    COMMAND_ACK) queued for :meth:`upload_mission` and :meth:`command_ack`, its STATUSTEXT and the mission
+    items it reports reached kept."""
+
+    REPLIES = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "COMMAND_ACK")
 
     def __init__(self, api_port: int) -> None:
         from pymavlink import mavutil
@@ -71,6 +76,11 @@ class _Telemetry:
         self.alt = 0.0
         self.home_amsl: float | None = None  # the vehicle's own home (SIH's is its SIH_LOC_H0, not windseek's)
         self.sysid: int | None = None
+        self.text: list[str] = []
+        self.reached: list[tuple[float, int]] = []  # (PX4 time s, mission item seq)
+        self._replies: deque[Any] = deque(maxlen=200)
+        self._cv = threading.Condition()
+        self._send_lock = threading.Lock()  # pymavlink's connection is not thread-safe for sending
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -80,19 +90,68 @@ class _Telemetry:
         while not self._stop.is_set():
             if time.monotonic() - hb > 0.5:
                 hb = time.monotonic()
-                self.m.mav.heartbeat_send(6, 8, 0, 0, 4)  # a ground station: PX4 keeps streaming to us
+                self.send("heartbeat_send", 6, 8, 0, 0, 4)  # a ground station: PX4 keeps streaming to us
             msg = self.m.recv_match(blocking=True, timeout=0.1)
             if msg is None:
                 continue
-            if msg.get_type() == "GLOBAL_POSITION_INT":
+            kind = msg.get_type()
+            if kind == "GLOBAL_POSITION_INT":
                 self.t_px4, self.alt = msg.time_boot_ms * 1e-3, msg.relative_alt * 1e-3
                 self.home_amsl = (msg.alt - msg.relative_alt) * 1e-3
-            elif msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1:
+            elif kind == "HEARTBEAT" and msg.get_srcComponent() == 1:
                 self.sysid = msg.get_srcSystem()
+            elif kind == "STATUSTEXT":
+                self.text.append(msg.text)
+            elif kind == "MISSION_ITEM_REACHED":
+                self.reached.append((self.t_px4, int(msg.seq)))
+            elif kind in self.REPLIES:
+                with self._cv:
+                    self._replies.append(msg)
+                    self._cv.notify_all()
+
+    def send(self, fn: str, *args: Any) -> None:
+        with self._send_lock:
+            getattr(self.m.mav, fn)(*args)
 
     def command(self, cmd: int, *params: float) -> None:
         if self.sysid is not None:
-            self.m.mav.command_long_send(self.sysid, 1, cmd, 0, *params)
+            self.send("command_long_send", self.sysid, 1, cmd, 0, *params)
+
+    def wait(self, types: list[str] | str, timeout_s: float, cond: Any = None) -> Any:
+        """The next queued answer of ``types`` (satisfying ``cond``) within ``timeout_s``, None if none came."""
+        want = [types] if isinstance(types, str) else types
+        deadline = time.monotonic() + timeout_s
+        with self._cv:
+            while True:
+                while self._replies:
+                    msg = self._replies.popleft()
+                    if msg.get_type() in want and (cond is None or cond(msg)):
+                        return msg
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._cv.wait(left)
+
+    def _clear(self) -> None:
+        with self._cv:
+            self._replies.clear()
+
+    def command_ack(self, cmd: int, *params: float, timeout_s: float = 5.0) -> int | None:
+        """COMMAND_LONG; its COMMAND_ACK result (None if none came)."""
+        self._clear()
+        self.command(cmd, *params)
+        ack = self.wait("COMMAND_ACK", timeout_s, lambda a: a.command == cmd)
+        return None if ack is None else int(ack.result)
+
+    def upload_mission(self, items: list[tuple[float, ...]], timeout_s: float = 20.0) -> int | None:
+        """A PX4 mission: ``items`` as :func:`sitl.ardupilot.gcs.upload_items` takes them (item 0 is flown: PX4
+        keeps no home item in its mission); the MISSION_ACK type (None if PX4 fell silent)."""
+        from sitl.ardupilot.gcs import upload_items
+
+        if self.sysid is None:
+            return None
+        self._clear()
+        return upload_items(self.send, self.wait, self.sysid, items, timeout_s)
 
     def close(self) -> None:
         self._stop.set()

@@ -2,7 +2,8 @@
 
 What MAVProxy does for a user, reduced to what windseek's checks need: it reads the link all the
 time, sends heartbeats, sets ArduCopter's modes by number, arms when the vehicle is ready, commands
-a take-off and uploads a mission with ArduPilot's mission protocol.
+a take-off and uploads a mission with the MAVLink mission protocol (:func:`upload_items`; PX4's
+ground station in ``benchmarks/px4_lockstep.py`` uploads with it too, without ArduPilot's home item).
 """
 
 from __future__ import annotations
@@ -18,6 +19,36 @@ from wire.dialect import mavlink
 
 #: ArduCopter's custom modes (ArduCopter/mode.h).
 COPTER_MODES = {"STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17}
+
+
+def upload_items(
+    send: Any, wait: Any, target_system: int, items: list[tuple[float, ...]], timeout_s: float = 20.0
+) -> int | None:
+    """The MAVLink mission protocol's upload, as the ground station's side: MISSION_COUNT, then each requested
+    item as MISSION_ITEM_INT, until the MISSION_ACK; its type (None if the autopilot fell silent).
+
+    ``items``: (command, lat deg, lon deg, alt m relative[, param1[, param2]]) numbered from 0 as given (ArduPilot
+    takes item 0 for home, PX4 flies it). ``send(fn, *args)`` sends with pymavlink's ``mav.<fn>``; ``wait(types,
+    timeout_s)`` gives the next message of those types that came after the caller cleared its queue, or None.
+    A navigation command (``MAV_CMD_NAV_*``, below 100) is placed relative to home
+    (``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``); any other in ``MAV_FRAME_MISSION``: PX4 refuses a DO_CHANGE_SPEED in
+    a global frame (``MAV_MISSION_UNSUPPORTED``, mavlink_mission.cpp), ArduPilot reads the frame only of the
+    commands that carry a place (AP_Mission ``stored_in_location``)."""
+    send("mission_count_send", target_system, 1, len(items), 0)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        r = wait(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5.0)
+        if r is None:
+            return None
+        if r.get_type() == "MISSION_ACK":
+            return int(r.type)
+        if not 0 <= r.seq < len(items):
+            continue
+        cmd, lat, lon, alt, p1, p2 = (*items[r.seq], 0.0, 0.0)[:6]
+        frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT if cmd < 100 else mavlink.MAV_FRAME_MISSION
+        send("mission_item_int_send", target_system, 1, r.seq, frame, int(cmd), 0, 1, p1, p2, 0, 0,
+             int(round(lat * 1e7)), int(round(lon * 1e7)), alt, 0)  # fmt: skip
+    return None
 
 
 class CopterGcs:
@@ -161,22 +192,10 @@ class CopterGcs:
     def upload_mission(self, items: list[tuple[float, ...]], timeout_s: float = 20.0) -> int | None:
         """(command, lat deg, lon deg, alt m relative[, param1[, param2]]) items after a home item 0 (param1 of a
         waypoint: its hold time, s; param2 of DO_CHANGE_SPEED: the speed, m/s); the MISSION_ACK type."""
-        sysid = self.m.target_system or 1
-        all_items = [(mavlink.MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0), *items]
         with self._cv:
             self.queue.clear()
-        self.send("mission_count_send", sysid, 1, len(all_items), 0)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            r = self._wait(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5.0)
-            if r is None:
-                return None
-            if r.get_type() == "MISSION_ACK":
-                return int(r.type)
-            cmd, lat, lon, alt, p1, p2 = (*all_items[r.seq], 0.0, 0.0)[:6]
-            self.send("mission_item_int_send", sysid, 1, r.seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, int(cmd), 0,
-                      1, p1, p2, 0, 0, int(round(lat * 1e7)), int(round(lon * 1e7)), alt, 0)  # fmt: skip
-        return None
+        return upload_items(self.send, self._wait, self.m.target_system or 1,
+                            [(mavlink.MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0), *items], timeout_s)  # fmt: skip
 
     def close(self) -> None:
         self._stop.set()
