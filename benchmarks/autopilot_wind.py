@@ -65,6 +65,8 @@ from wire.dialect import mavlink as M  # noqa: E402, N812
 #: EKF3's and EKF2's multirotor drag model for nasa-quad (benchmarks/drag_coefficients.py on the blade-element truth).
 EKF3_DRAG = {"EK3_DRAG_BCOEF_X": 115.3, "EK3_DRAG_BCOEF_Y": 115.3, "EK3_DRAG_MCOEF": 0.055}
 EKF2_DRAG = {"EKF2_DRAG_CTRL": 1, "EKF2_BCOEF_X": 115.3, "EKF2_BCOEF_Y": 115.3, "EKF2_MCOEF": 0.055}
+#: PX4's AUTO.MISSION, its heartbeat's custom_mode >> 16: main mode AUTO 4, sub mode MISSION 4 (px4_custom_mode.h).
+PX4_AUTO_MISSION = 4 | 4 << 8
 
 
 def scenario_file(name: str, step_at: float, out: Path) -> str:
@@ -179,7 +181,8 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
                     route = []
                 time.sleep(0.2)
         finally:
-            (out / "px4_mission.json").write_text(json.dumps({"reached": tel.reached, "text": tel.text}))
+            log = {"reached": tel.reached, "text": tel.text, "acks": tel.acks}
+            (out / "px4_mission.json").write_text(json.dumps(log))
             tel.close()
             stop_process(est)
             stop_process(ws)
@@ -187,16 +190,28 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
     return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf2")
 
 
-def fly_route_px4(tel: Any, route: list[tuple[float, ...]]) -> None:
+def fly_route_px4(tel: Any, route: list[tuple[float, ...]], timeout_s: float = 60.0) -> None:
     """Upload ``route`` (:func:`route_items`) as PX4's mission and start it (MAV_CMD_MISSION_START from item 0:
-    PX4's commander switches to AUTO.MISSION); RuntimeError with PX4's last words if it refuses."""
+    PX4's commander switches to AUTO.MISSION); RuntimeError with PX4's last words if it refuses.
+
+    Started is when PX4 acknowledges the command or its heartbeat shows AUTO.MISSION; a refusal (the commander
+    sees the new mission's validity a moment after the upload's ACK) is retried, a missing answer is not: a
+    second MISSION_START would send PX4 back to item 0 of a mission it is already flying."""
     if tel.upload_mission(route) != M.MAV_MISSION_ACCEPTED:
         raise RuntimeError(f"PX4 did not accept the route: {tel.text[-5:]}")
-    for _ in range(10):  # the commander sees the new mission's validity a moment after the ACK
-        if tel.command_ack(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED:
+    deadline, send = time.monotonic() + timeout_s, True
+    while time.monotonic() < deadline:
+        if send:
+            tel.clear()
+            tel.command(M.MAV_CMD_MISSION_START, 0, 0)
+            send = False
+        ack = tel.wait("COMMAND_ACK", 0.5, lambda a: a.command == M.MAV_CMD_MISSION_START)
+        if (tel.custom_mode >> 16) & 0xFFFF == PX4_AUTO_MISSION or (ack and ack.result == M.MAV_RESULT_ACCEPTED):
             return
-        time.sleep(0.5)
-    raise RuntimeError(f"PX4 did not start the mission: {tel.text[-5:]}")
+        if ack is not None:  # refused: again in a moment
+            time.sleep(0.5)
+            send = True
+    raise RuntimeError(f"PX4 did not start the mission: {tel.text[-5:]}, acks {tel.acks[-5:]}")
 
 
 def _route(sc_path: str, s: dict[str, Any]) -> dict[str, Any] | None:

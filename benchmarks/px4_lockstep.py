@@ -76,7 +76,9 @@ class _Telemetry:
         self.alt = 0.0
         self.home_amsl: float | None = None  # the vehicle's own home (SIH's is its SIH_LOC_H0, not windseek's)
         self.sysid: int | None = None
+        self.custom_mode = 0  # PX4's mode in its heartbeat: main mode in bits 16-23, sub mode in 24-31
         self.text: list[str] = []
+        self.acks: list[tuple[float, int, int]] = []  # (PX4 time s, command, result) of every COMMAND_ACK
         self.reached: list[tuple[float, int]] = []  # (PX4 time s, mission item seq)
         self._replies: deque[Any] = deque(maxlen=200)
         self._cv = threading.Condition()
@@ -99,12 +101,14 @@ class _Telemetry:
                 self.t_px4, self.alt = msg.time_boot_ms * 1e-3, msg.relative_alt * 1e-3
                 self.home_amsl = (msg.alt - msg.relative_alt) * 1e-3
             elif kind == "HEARTBEAT" and msg.get_srcComponent() == 1:
-                self.sysid = msg.get_srcSystem()
+                self.sysid, self.custom_mode = msg.get_srcSystem(), int(msg.custom_mode)
             elif kind == "STATUSTEXT":
                 self.text.append(msg.text)
             elif kind == "MISSION_ITEM_REACHED":
                 self.reached.append((self.t_px4, int(msg.seq)))
             elif kind in self.REPLIES:
+                if kind == "COMMAND_ACK":
+                    self.acks.append((self.t_px4, int(msg.command), int(msg.result)))
                 with self._cv:
                     self._replies.append(msg)
                     self._cv.notify_all()
@@ -115,7 +119,7 @@ class _Telemetry:
 
     def command(self, cmd: int, *params: float) -> None:
         if self.sysid is not None:
-            self.send("command_long_send", self.sysid, 1, cmd, 0, *params)
+            self.send("command_long_send", self.sysid, 1, cmd, 0, *params, *[0.0] * (7 - len(params)))
 
     def wait(self, types: list[str] | str, timeout_s: float, cond: Any = None) -> Any:
         """The next queued answer of ``types`` (satisfying ``cond``) within ``timeout_s``, None if none came."""
@@ -132,13 +136,14 @@ class _Telemetry:
                     return None
                 self._cv.wait(left)
 
-    def _clear(self) -> None:
+    def clear(self) -> None:
+        """Forget the answers queued so far (before a request whose answer to wait for)."""
         with self._cv:
             self._replies.clear()
 
     def command_ack(self, cmd: int, *params: float, timeout_s: float = 5.0) -> int | None:
         """COMMAND_LONG; its COMMAND_ACK result (None if none came)."""
-        self._clear()
+        self.clear()
         self.command(cmd, *params)
         ack = self.wait("COMMAND_ACK", timeout_s, lambda a: a.command == cmd)
         return None if ack is None else int(ack.result)
@@ -150,7 +155,7 @@ class _Telemetry:
 
         if self.sysid is None:
             return None
-        self._clear()
+        self.clear()
         return upload_items(self.send, self.wait, self.sysid, items, timeout_s)
 
     def close(self) -> None:
