@@ -105,4 +105,29 @@ def add_demo_result(path: Path | str, demo: dict[str, Any], mission_rrd: Path | 
     return s
 
 
-__all__ = ["add_demo_result", "demo_summary", "rewrite_summary"]
+def merge_mission(path: Path | str, mission_rrd: Path | str) -> None:
+    """Copy the mission's posterior and setpoints (``windseek mission --rrd``) into the SITL's closed recording
+    ``path`` of the same flight, its own summary kept."""
+    rewrite_summary(path, RrdLog(path).summary() or RunSummary(kind="recording"), [mission_rrd])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m recording.finalize SITL.rrd MISSION.rrd``: :func:`merge_mission` from the command line."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m recording.finalize",
+                                 description="Merge the mission's recording (windseek mission --rrd: the strategy's "
+                                 "posterior, the setpoints) into the SITL's recording of the same flight (windseek "
+                                 "sitl --rrd), in place.")  # fmt: skip
+    ap.add_argument("sitl_rrd")
+    ap.add_argument("mission_rrd")
+    a = ap.parse_args(argv)
+    merge_mission(a.sitl_rrd, a.mission_rrd)
+    print(f"merged {a.mission_rrd} into {a.sitl_rrd}")
+    return 0
+
+
+__all__ = ["add_demo_result", "demo_summary", "merge_mission", "rewrite_summary"]
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -288,14 +288,14 @@ def _check_posterior_rrd(sitl_rrd: Path, mission_rrd: Path, src: np.ndarray, dec
     """Merged into the SITL's recording (as ``windseek demo`` does), the mission's posterior and credible
     circle lie on the SITL's timeline within the flight (several of them), the posterior's last peak is
     near the true source, the last circle is about the declared source; the SITL's own entities stay."""
-    from recording.finalize import rewrite_summary
+    from recording.finalize import merge_mission
     from recording.read import RrdLog
 
     before = RrdLog(sitl_rrd)
     assert "map/posterior/image" not in before.entity_paths()  # the SITL alone has no posterior
     s = before.summary()
     assert s is not None and s.t_arm_s is not None and s.t_disarm_s is not None, s
-    rewrite_summary(sitl_rrd, s, [mission_rrd])
+    merge_mission(sitl_rrd, mission_rrd)
     log = RrdLog(sitl_rrd)
     paths = set(log.entity_paths())
     assert {"map/posterior/image", "map/posterior/credible", "map/setpoint", "world/vehicle", "summary"} <= paths

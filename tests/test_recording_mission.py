@@ -14,7 +14,7 @@ import numpy as np
 
 from mission.strategies.base import WindInfo
 from mission.vehicle import VehicleState
-from recording.finalize import rewrite_summary
+from recording.finalize import main as merge_main
 from recording.mission_rrd import MissionRecorder
 from recording.read import RrdLog
 from recording.recorder import RunRecorder
@@ -99,7 +99,7 @@ def test_the_merge_adds_only_what_the_mission_alone_knows(tmp_path: Path) -> Non
     s = before.summary()
     assert s is not None and "map/posterior/image" not in before.entity_paths()
     n_path = len(before.column("map/path", "LineStrips2D:strips")[0])
-    rewrite_summary(sitl, s, [tmp_path / "mission.rrd"])
+    assert merge_main([str(sitl), str(tmp_path / "mission.rrd")]) == 0  # python -m recording.finalize SITL MISSION
     log = RrdLog(sitl)
     assert log.application_ids == ["windseek"]  # one recording: the mission's chunks joined the SITL's
     paths = set(log.entity_paths())
