@@ -81,6 +81,7 @@ class MissionRecorder:
         self.posteriors = 0  # posteriors logged (a test and the cost figures count them)
         self.posterior_cpu_s = 0.0  # CPU of those logs, the strategy's posterior_map included [s]
         self.loop: MissionLoop | None = None
+        self.failed: str | None = None  # why the recording stopped mid-flight (None: it did not)
 
     def attach(self, loop: MissionLoop) -> None:
         """Listen to ``loop`` (before it flies): its search ticks, the setpoints and status its vehicle sends."""
@@ -91,20 +92,32 @@ class MissionRecorder:
         def tick(t: float) -> None:
             if on_tick is not None:
                 on_tick(t)
-            self.meter(self._tick, t)
+            self._guard(self._tick, t)
 
         def sent(pos: np.ndarray | None, vel: np.ndarray | None, yaw: float | None) -> None:
             send(pos, vel, yaw)
             if pos is not None and math.isfinite(v.state.t):
-                self.meter(self.rec.setpoint, v.state.t, pos)
+                self._guard(self.rec.setpoint, v.state.t, pos)
 
         def published(pairs: list[tuple[str, str]]) -> None:
             publish(pairs)
-            self.meter(self._on_status, v.state.t, pairs)
+            self._guard(self._on_status, v.state.t, pairs)
 
         loop.on_tick = tick
         v.send_setpoint = sent  # type: ignore[method-assign]  # a tap: what the mission sends, as sent
         v.publish = published  # type: ignore[method-assign]
+
+    def _guard(self, fn: Any, *args: Any) -> None:
+        """Run a recording step, metered; the first failure stops the recording, never the mission (a
+        vehicle in flight matters more than its record): said once, the rest of the flight not recorded."""
+        if self.failed is not None:
+            return
+        try:
+            self.meter(fn, *args)
+        except Exception as e:  # noqa: BLE001 - a disk, rerun or a strategy's posterior_map: any of them
+            self.failed = f"{type(e).__name__}: {e}"
+            if self.loop is not None:
+                self.loop.v.say(f"mission: the recording stopped ({self.failed}); the mission goes on")
 
     def _tick(self, t: float) -> None:
         loop, rec = self.loop, self.rec
@@ -171,7 +184,10 @@ class MissionRecorder:
         rec = self.rec
         if rec.closed:
             return
-        self.meter(lambda: rec.summary(self.summary(res), write=False))
+        s = self.summary(res)
+        if self.failed is not None:
+            s.notes.append(f"the recording stopped mid-flight: {self.failed}")
+        self.meter(lambda: rec.summary(s, write=False))
         rec.property("posterior", logged=self.posteriors, cpu_ms_mean=round(
             1e3 * self.posterior_cpu_s / self.posteriors, 3) if self.posteriors else None)  # fmt: skip
         self.meter(rec.close, lambda: self.meter.report(rec))

@@ -119,3 +119,29 @@ def test_the_merge_adds_only_what_the_mission_alone_knows(tmp_path: Path) -> Non
     assert labels[-1] == ["credible 4.0 m"]
     after = log.summary()
     assert after is not None and after.kind == s.kind and not after.kind.startswith("windseek mission")
+
+
+class _Broken(_Gaussian):
+    def posterior_map(self, cell_m: float = 1.0) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+        raise MemoryError("no room for the grid")
+
+
+def test_a_failing_recording_never_stops_the_mission(tmp_path: Path) -> None:
+    """The first failure (here the strategy's posterior_map) stops the recording, said once; every tick,
+    setpoint and status still reaches the loop and the vehicle, and the file closes with why."""
+    v, lines, ticks = _Vehicle(), [], []
+    v.say = lines.append  # type: ignore[attr-defined]
+    loop = SimpleNamespace(v=v, strategy=_Broken(), on_tick=ticks.append, wind_info=None)
+    rec = MissionRecorder(tmp_path / "m.rrd")
+    rec.attach(loop)  # type: ignore[arg-type]
+    for k in range(30):
+        v.state.t = 10.0 + 0.1 * k
+        loop.on_tick(v.state.t)
+        v.send_setpoint(np.zeros(3), None, None)
+    v.publish([state_fields("search")])
+    rec.close(None)
+    assert len(ticks) == 30 and len(v.sent) == 30 and len(v.published) == 1
+    assert rec.failed is not None and "no room" in rec.failed
+    assert len(lines) == 1 and "recording stopped" in lines[0], lines
+    s = RrdLog(tmp_path / "m.rrd").summary()
+    assert s is not None and any("stopped mid-flight" in n for n in s.notes)

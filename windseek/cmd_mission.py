@@ -137,7 +137,10 @@ def run(args: argparse.Namespace) -> int:
         res = asyncio.run(run_mission(cfg))
     finally:
         if recorder is not None:
-            recorder.close(res)
+            try:
+                recorder.close(res)
+            except Exception as e:  # noqa: BLE001 - after the flight: the result still gets printed
+                say(f"mission: the recording {args.rrd} could not be closed: {e}")
     if args.json:
         print(json.dumps(res.to_dict(), allow_nan=False))
     else:
