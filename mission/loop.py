@@ -119,6 +119,11 @@ class MissionLoop:
         self._declared_sent = False
         self._offboard_seen = False
 
+    @property
+    def wind_info(self) -> WindInfo | None:
+        """The wind the strategy got at the latest tick (None: none yet, or no wind mode)."""
+        return self._wind_info
+
     # ------------------------------------------------------------------ lines
     def say(self, line: str) -> None:
         if line.startswith(("ABORT", "LINK", "SAFETY")):

@@ -12,7 +12,10 @@ The simulator, estimator and strategies never import rerun; they hand SI/NED dat
 - :mod:`recording.phases`: flight phases and their markers;
 - :mod:`recording.ranges`, :mod:`recording.layout`: the plots' ranges and the viewer layout;
 - :mod:`recording.summary`: the run summary the recording carries;
-- :mod:`recording.finalize`: rewrite a finished recording with a new summary (``windseek demo``);
+- :mod:`recording.finalize`: rewrite a finished recording with a new summary and the mission's own
+  recording merged in (``windseek demo``);
+- :mod:`recording.mission_rrd`: the mission's side (``windseek mission --rrd``: the strategy's posterior,
+  the setpoints), listening to the mission loop;
 - :mod:`recording.read`: read a saved ``.rrd`` back as numpy arrays;
 - :mod:`recording.sim_hook`: the simulated world's truth (``record_world``; ``record_simulation``);
 - :mod:`recording.wire_rx`: what arrives on a MAVLink link (estimates, mission, an autopilot's own);

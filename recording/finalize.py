@@ -5,7 +5,10 @@ mission's result next to the truth. :func:`rewrite_summary` rewrites the file wi
 summary: every chunk is copied into a new file with the same application and recording id (the
 old summary and result property left out), the new summary and the layout (rebuilt from the facts
 stored in the recording) are added, and the new file replaces the old one atomically. A 5 MB
-recording takes well under a second. :func:`demo_summary` turns the demo's summary (the
+recording takes well under a second. The same rewrite merges in the mission's own recording
+(``windseek mission --rrd``, :mod:`recording.mission_rrd`): its :data:`~recording.mission_rrd.MISSION_ONLY`
+entities (the strategy's posterior and credible circle, the setpoints), on the same vehicle clock.
+:func:`demo_summary` turns the demo's summary (the
 ``.json`` it writes) into a :class:`RunSummary`, keeping what only the recording knew (the phase
 times on the vehicle clock, the path until within 5 m of the source, the verification sweeps).
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,12 +25,14 @@ import rerun as rr
 from rerun.chunk import RrdReader
 
 from recording.layout import Layout, make_blueprint
+from recording.mission_rrd import MISSION_ONLY
 from recording.read import RrdLog
 from recording.summary import RunSummary
 
 
-def rewrite_summary(path: Path | str, summary: RunSummary) -> None:
-    """Replace the run summary of the closed recording ``path`` (see the module docstring)."""
+def rewrite_summary(path: Path | str, summary: RunSummary, merge: Sequence[Path | str] = ()) -> None:
+    """Replace the run summary of the closed recording ``path``, and copy the mission-only entities of the
+    recordings ``merge`` (mission recordings of the same flight) into it (see the module docstring)."""
     path = Path(path)
     log = RrdLog(path)
     lay_json = log.property_value("layout", "json")
@@ -44,6 +50,8 @@ def rewrite_summary(path: Path | str, summary: RunSummary) -> None:
         out.send_property("result", rr.AnyValues(**summary.properties()))
         out.send_chunks(reader.stream().filter(content=["+ /**", "+ /__properties/**", "- /summary",
                                                         "- /__properties/result"]))
+        for other in merge:  # another recording id: its chunks join this recording as they are sent here
+            out.send_chunks(RrdReader(Path(other)).stream().filter(content=list(MISSION_ONLY)))
         out.flush()
         out.disconnect()
         os.replace(tmp, path)
@@ -88,12 +96,38 @@ def demo_summary(demo: dict[str, Any], before: RunSummary | None = None) -> RunS
     return s
 
 
-def add_demo_result(path: Path | str, demo: dict[str, Any]) -> RunSummary:
-    """Rewrite the demo's recording with its result (the summary the demo printed); returns it."""
+def add_demo_result(path: Path | str, demo: dict[str, Any], mission_rrd: Path | str | None = None) -> RunSummary:
+    """Rewrite the demo's recording with its result (the summary the demo printed) and the mission's
+    posterior and setpoints from ``mission_rrd`` (the mission's own recording), if given; returns the summary."""
     before = RrdLog(path).summary()
     s = demo_summary(demo, before)
-    rewrite_summary(path, s)
+    rewrite_summary(path, s, [] if mission_rrd is None else [mission_rrd])
     return s
 
 
-__all__ = ["add_demo_result", "demo_summary", "rewrite_summary"]
+def merge_mission(path: Path | str, mission_rrd: Path | str) -> None:
+    """Copy the mission's posterior and setpoints (``windseek mission --rrd``) into the SITL's closed recording
+    ``path`` of the same flight, its own summary kept."""
+    rewrite_summary(path, RrdLog(path).summary() or RunSummary(kind="recording"), [mission_rrd])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m recording.finalize SITL.rrd MISSION.rrd``: :func:`merge_mission` from the command line."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m recording.finalize",
+                                 description="Merge the mission's recording (windseek mission --rrd: the strategy's "
+                                 "posterior, the setpoints) into the SITL's recording of the same flight (windseek "
+                                 "sitl --rrd), in place.")  # fmt: skip
+    ap.add_argument("sitl_rrd")
+    ap.add_argument("mission_rrd")
+    a = ap.parse_args(argv)
+    merge_mission(a.sitl_rrd, a.mission_rrd)
+    print(f"merged {a.mission_rrd} into {a.sitl_rrd}")
+    return 0
+
+
+__all__ = ["add_demo_result", "demo_summary", "merge_mission", "rewrite_summary"]
+
+if __name__ == "__main__":
+    raise SystemExit(main())

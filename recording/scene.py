@@ -13,6 +13,7 @@ Entity paths::
     world/plume/curtain                concentration on the vertical plane along the wind through the source
     world/plume/puffs                  puff centres (small dots; off unless a caller logs them)
     map/posterior/{image,credible}     a strategy's source posterior and its credible circle
+    map/setpoint, world/setpoint       the position setpoint the mission sent (the mission's recording)
     map/path, world/trail              the path, one segment per row (on the map coloured by strategy
                                        state); the views show every row up to the time cursor
     map/hits                           where the sensor detected the plume, coloured by concentration (the same)
@@ -365,6 +366,14 @@ class SceneMixin(RecorderBase):
                                                                    labels=[f"credible {r:.1f} m"], draw_order=22.0))
         else:
             self.rec.log("map/posterior/credible", rr.Clear(recursive=False))
+
+    def setpoint(self, t: float, pos_ned: VecLike) -> None:
+        """The position setpoint [m, NED] a mission sent at vehicle time ``t`` [s] (a row on the map and in 3D;
+        the style is the caller's, :mod:`recording.mission_rrd`)."""
+        p = np.array(pos_ned, dtype=float)  # a copy: rows are sent later
+        self._push_row("map/setpoint", rr.Points2D, t, positions=(p[1], -p[0]))
+        self._push_row("world/setpoint", rr.Points3D, t, positions=p)
+        self._maybe_flush(float(t))
 
     # ------------------------------------------------------------------ wind
     def wind_arrows(self, t: float, pos_ned: VecLike, wind_true_ned: VecLike | None,

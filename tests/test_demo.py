@@ -155,8 +155,13 @@ def test_demo_runs_three_processes_and_writes_logs(tmp_path: Path) -> None:
     log = RrdLog(rrd)
     paths = set(log.entity_paths())
     for e in ("world/vehicle", "world/trail", "world/wind/estimate", "wind/north/estimate", "wind/north/band",
-              "chem/value", "chem/threshold", "world/sources/true", "world/geofence", "log/mission"):  # fmt: skip
+              "chem/value", "chem/threshold", "world/sources/true", "world/geofence", "log/mission",
+              "map/setpoint", "world/setpoint"):  # fmt: skip  # the last two: the mission's recording, merged
         assert e in paths, e
+    assert not rrd.with_suffix(".mission.rrd").exists()  # merged into the one recording, then deleted
+    t_sp, _ = log.vectors("world/setpoint", "Points3D:positions")  # on the SITL's clock, within the flight
+    t_veh, _ = log.vectors("world/vehicle", "Transform3D:translation")
+    assert len(t_sp) > 50 and t_veh[0] < t_sp[0] and t_sp[-1] < t_veh[-1]
     t, v = log.scalars("wind/north/estimate")
     assert len(t) > 50 and np.isfinite(v).all()
 

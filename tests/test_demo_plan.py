@@ -26,6 +26,9 @@ def test_the_mission_gets_the_buildings_of_an_urban_scenario(tmp_path: Path, sce
     assert argv[:3] == ["mission", "--connect", "udpin://127.0.0.1:14999"]
     assert argv[argv.index("--seed") + 1] == "7" and argv[argv.index("--strategy") + 1] == "zigzag"
     assert ("--buildings" in argv) is buildings
+    # The mission records its side (the posterior, the setpoints) beside the SITL's recording, to be merged.
+    assert argv[argv.index("--rrd") + 1] == str(pl.mission_rrd) and pl.mission_rrd.name.endswith(".mission.rrd")
+    assert "--rrd" not in mission_argv(_plan(_args(tmp_path, "--no-rrd")), 14999)
     if buildings:  # the argument names a scenario the mission can read its buildings from
         site = SiteBuildings.from_scenario_file(argv[argv.index("--buildings") + 1])
         assert len(site.obstacles.buildings) == 6

@@ -246,18 +246,24 @@ async def test_infotaxis_through_mavsdk_declares_a_credible_region_and_lands(obs
     """The same Infotaxis object the batch evaluation runs in-process, here at the SITL's real-time
     pace (speed 5) behind MAVSDK and the live UKF: its move choice (3 ms of CPU a bin) keeps the
     10 Hz loop, it declares within its 3 m success radius with the credible region and confidence
-    it states, and the SITL's own scoring sees the same declaration."""
+    it states, and the SITL's own scoring sees the same declaration. Both sides record it (``windseek
+    sitl --rrd``, the mission's ``MissionRecorder`` as ``windseek mission --rrd``), merged as ``windseek
+    demo`` merges them: the SITL's recording then shows the posterior, see :func:`_check_posterior_rrd`."""
     from mission.strategies import params_from_table
+    from recording.mission_rrd import MissionRecorder
 
     port = free_port()
-    summary = tmp_path / "sitl-summary.json"
-    sitl = Sitl([port, observer.port], SPEED, "--forward", "--exit-summary", str(summary))
+    summary, sitl_rrd, mission_rrd = tmp_path / "sitl-summary.json", tmp_path / "sitl.rrd", tmp_path / "mission.rrd"
+    sitl = Sitl([port, observer.port], SPEED, "--forward", "--exit-summary", str(summary), "--rrd", str(sitl_rrd))
     observer.set_param(sitl.port, "COM_OF_LOSS_T", 1.0 * SPEED)  # 1 s of wall clock, as in the search above
     lines: list[str] = []
+    recorder = MissionRecorder(mission_rrd, strategy="infotaxis", seed=1)
+    res = None
     try:
-        cfg = replace(_config(port, lines), strategy="infotaxis")
+        cfg = replace(_config(port, lines), strategy="infotaxis", observe=recorder.attach)
         res = await asyncio.wait_for(run_mission(cfg), 80.0)
     finally:
+        recorder.close(res)
         sitl.close()
     print("\n".join(lines))
     p = params_from_table("infotaxis", None)
@@ -272,6 +278,44 @@ async def test_infotaxis_through_mavsdk_declares_a_credible_region_and_lands(obs
     truth = json.loads(summary.read_text())
     assert truth["declared"]["confidence"] == pytest.approx(res.confidence, abs=1e-3)
     assert truth["declared_error_horizontal_m"] == pytest.approx(err, abs=0.01)
+    cost_ms = 1e3 * recorder.posterior_cpu_s / max(recorder.posteriors, 1)
+    print(f"mission recording: {recorder.posteriors} posteriors, {cost_ms:.2f} ms CPU each; "
+          f"{mission_rrd.stat().st_size / 1e6:.2f} MB")  # fmt: skip
+    _check_posterior_rrd(sitl_rrd, mission_rrd, src, res.declared_ned)
+
+
+def _check_posterior_rrd(sitl_rrd: Path, mission_rrd: Path, src: np.ndarray, declared: list[float]) -> None:
+    """Merged into the SITL's recording (as ``windseek demo`` does), the mission's posterior and credible
+    circle lie on the SITL's timeline within the flight (several of them), the posterior's last peak is
+    near the true source, the last circle is about the declared source; the SITL's own entities stay."""
+    from recording.finalize import merge_mission
+    from recording.read import RrdLog
+
+    before = RrdLog(sitl_rrd)
+    assert "map/posterior/image" not in before.entity_paths()  # the SITL alone has no posterior
+    s = before.summary()
+    assert s is not None and s.t_arm_s is not None and s.t_disarm_s is not None, s
+    merge_mission(sitl_rrd, mission_rrd)
+    log = RrdLog(sitl_rrd)
+    paths = set(log.entity_paths())
+    assert {"map/posterior/image", "map/posterior/credible", "map/setpoint", "world/vehicle", "summary"} <= paths
+    t_img, fmt = log.column("map/posterior/image", "Image:format")
+    inside = (t_img >= s.t_arm_s) & (t_img <= s.t_disarm_s)
+    assert inside.sum() >= 5 and inside.all(), (t_img, s.t_arm_s, s.t_disarm_s)
+    t_veh, _ = log.vectors("world/vehicle", "Transform3D:translation")  # the SITL's truth, its clock
+    assert t_veh[0] < t_img[0] and t_img[-1] < t_veh[-1]
+    _, tr = log.vectors("map/posterior/image", "Transform3D:translation")
+    _, sc = log.vectors("map/posterior/image", "Transform3D:scale")
+    _, buf = log.column("map/posterior/image", "Image:buffer")
+    h, w = fmt[-1][0]["height"], fmt[-1][0]["width"]
+    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(h, w, 4)
+    row, col = np.unravel_index(np.argmax(img[..., 3]), (h, w))
+    east, north = tr[-1][0] + (col + 0.5) * sc[-1][0], -(tr[-1][1] + (row + 0.5) * sc[-1][1])
+    assert np.hypot(north - src[0], east - src[1]) <= 4.0, ((north, east), src)
+    t_c, strips = log.column("map/posterior/credible", "LineStrips2D:strips")
+    assert len(t_c) >= 5 and ((t_c >= s.t_arm_s) & (t_c <= s.t_disarm_s)).all()
+    ring = np.array(strips[-1][0])
+    assert np.hypot(ring[:, 0].mean() - declared[1], -ring[:, 1].mean() - declared[0]) <= 0.5
 
 
 @pytest.mark.asyncio

@@ -21,7 +21,10 @@ truth. Files, beside each other in ``--logs`` (default ``logs/``)::
 
 The mission publishes its strategy state (STATUSTEXT ``state: NAME``) and its declaration
 (NAMED_VALUE_FLOAT SRC_N/E/D/CONF, :mod:`wire.names`) over MAVLink itself; the SITL records
-them (.rrd, .tlog, the exit summary's ``declared``). The demo only shows the mission's lines.
+them (.rrd, .tlog, the exit summary's ``declared``). The mission also writes its own recording
+(``--rrd <base>.mission.rrd``: the strategy's posterior and credible circle, the setpoints), which
+the demo merges into the SITL's ``.rrd`` at the end (:mod:`recording.finalize`) and then deletes.
+The demo only shows the mission's lines.
 Exit status: 0 source found, 1 not found, 2 a process failed (its last lines shown).
 """
 
@@ -91,6 +94,7 @@ class _Plan:
     fence: str
     buildings: bool  # the scenario has [urban] buildings: the mission flies among them (--buildings)
     search_altitude_m: float  # the mission's search altitude (its strategy's default, within the limits)
+    mission_rrd: Path | None  # the mission's own recording, merged into the SITL's at the end (None: no --rrd)
 
 
 def _plan(args: argparse.Namespace) -> _Plan:
@@ -121,6 +125,7 @@ def _plan(args: argparse.Namespace) -> _Plan:
         buildings=sc.urban is not None and bool(sc.urban.buildings),
         search_altitude_m=min(max(load_params(args.strategy).altitude_m, limits.min_altitude_m),
                               limits.max_altitude_m),
+        mission_rrd=None if args.no_rrd else Path(f"{base}.mission.rrd"),
     )  # fmt: skip
 
 
@@ -134,11 +139,13 @@ def rrd_argv(pl: _Plan) -> list[str]:
 
 
 def mission_argv(pl: _Plan, port: int) -> list[str]:
-    """``windseek mission``'s arguments in a demo: the estimator's wind from the network and, in a
+    """``windseek mission``'s arguments in a demo: the estimator's wind from the network, its own
+    recording (the strategy's posterior and the setpoints, merged into the SITL's at the end) and, in a
     scenario with buildings, those buildings as exclusion zones (without them the search flies into
     the first block in its way)."""
     return ["mission", "--connect", f"udpin://127.0.0.1:{port}", "--strategy", pl.strategy, "--wind", "mavlink",
             "--speed-hint", f"{pl.speed:g}", "--seed", str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json",
+            *(["--rrd", str(pl.mission_rrd)] if pl.mission_rrd is not None else []),
             *(["--buildings", pl.scenario] if pl.buildings else [])]  # fmt: skip
 
 
@@ -272,18 +279,29 @@ def run(args: argparse.Namespace) -> int:
                            time.monotonic() - demo.wall0, plan.files)  # fmt: skip
     plan.files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     if "rrd" in plan.files:
-        try:  # the recording carries the same summary as the one printed (and the .json)
-            from recording.finalize import add_demo_result
-
-            add_demo_result(plan.files["rrd"], summary)
-        except (OSError, RuntimeError, ValueError) as e:
-            demo.note(f"  recording: the summary could not be added to {plan.files['rrd']}: {e}")
+        _finish_recording(plan, summary, demo.note)
     with contextlib.suppress(OSError):
         plan.truth_path.unlink()
     print_summary(summary, demo.note)
     if args.json:
         print(json.dumps(summary, allow_nan=False), flush=True)
     return 0 if summary["found"] else 1
+
+
+def _finish_recording(plan: _Plan, summary: dict[str, Any], note: Any) -> None:
+    """The SITL's recording gets the summary printed (and the .json) and the mission's own recording
+    (the strategy's posterior, the setpoints), which is then deleted: one file to open."""
+    from recording.finalize import add_demo_result
+
+    mis = plan.mission_rrd if plan.mission_rrd is not None and plan.mission_rrd.is_file() else None
+    try:
+        add_demo_result(plan.files["rrd"], summary, mis)
+    except (OSError, RuntimeError, ValueError) as e:
+        note(f"  recording: the summary could not be added to {plan.files['rrd']}: {e}")
+        return
+    if mis is not None:
+        with contextlib.suppress(OSError):
+            mis.unlink()
 
 
 class _FailedError(Exception):

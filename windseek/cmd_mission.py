@@ -4,7 +4,8 @@ Connects to an autopilot (``windseek sitl``, PX4) over UDP, TCP or serial, runs 
 estimator live on the telemetry, flies the strategy in offboard mode inside a geofence box,
 altitude band and time limit, lands at the declared source and prints a summary (``--json``:
 one JSON object). Exit status: 0 declared and landed, 1 stopped by a safety rule (the cause is
-printed as one ``ABORT (cause): why`` line and in the JSON), 2 could not start.
+printed as one ``ABORT (cause): why`` line and in the JSON), 2 could not start. ``--rrd PATH``
+records the mission's side (:mod:`recording.mission_rrd`: the strategy's posterior, setpoints, states).
 """
 
 from __future__ import annotations
@@ -68,6 +69,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--buildings", default=None, metavar="SCENARIO",
                    help="fly among the [urban] buildings of this scenario (name or file): uploaded to the autopilot "
                    "as geofence exclusion zones and kept clear of by every setpoint")
+    p.add_argument("--rrd", default=None, metavar="PATH",
+                   help="a Rerun recording of the mission's side: the strategy's source posterior and credible "
+                   "region (1 Hz), the setpoints sent, the strategy states, the path as the mission reads it "
+                   "(recording/mission_rrd.py)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (lines go to stderr)")
     p.set_defaults(func=run)
 
@@ -121,7 +126,21 @@ def run(args: argparse.Namespace) -> int:
         speed_hint=args.speed_hint, esc_component=args.esc_component, say=say, signing_key=key,
         buildings=buildings,
     )  # fmt: skip
-    res = asyncio.run(run_mission(cfg))
+    recorder = None
+    if args.rrd is not None:
+        from recording.mission_rrd import MissionRecorder
+
+        recorder = MissionRecorder(args.rrd, strategy=args.strategy, seed=args.seed, scenario=args.buildings)
+        cfg.observe = recorder.attach
+    res: MissionResult | None = None
+    try:
+        res = asyncio.run(run_mission(cfg))
+    finally:
+        if recorder is not None:
+            try:
+                recorder.close(res)
+            except Exception as e:  # noqa: BLE001 - after the flight: the result still gets printed
+                say(f"mission: the recording {args.rrd} could not be closed: {e}")
     if args.json:
         print(json.dumps(res.to_dict(), allow_nan=False))
     else:

@@ -79,6 +79,9 @@ class MissionConfig:
         autopilot's local frame from its HOME_POSITION, uploaded as geofence exclusion zones and
         kept clear by the safety supervisor; None: open field.
     say: where the runner's lines go (default print).
+    observe: called with the mission loop once it exists, before it flies: a listener (e.g.
+        :class:`recording.mission_rrd.MissionRecorder`, ``windseek mission --rrd``) hooks itself onto
+        the loop's ``on_tick`` and its vehicle; None: nobody listens.
     """
 
     connect: str
@@ -100,6 +103,7 @@ class MissionConfig:
     say: Callable[[str], None] = print
     signing_key: Any = None  # wire.signing.SigningKey: MAVLink 2 signing on the link (None: off)
     buildings: SiteBuildings | None = None
+    observe: Callable[[MissionLoop], None] | None = None
 
 
 async def run_mission(cfg: MissionConfig) -> MissionResult:
@@ -139,6 +143,8 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
                                seed=cfg.seed, obstacles=obstacles)  # fmt: skip
             loop.result.strategy = cfg.strategy
+            if cfg.observe is not None:
+                cfg.observe(loop)
             if v.ardupilot:
                 await ardupilot.ensure_gcs_failsafe(v, loop.say, MAVSDK_GCS_SYSID)
             else:
