@@ -175,7 +175,10 @@ class ModelFit:
         (once: the first one latches)."""
         if self.mismatch is not None:
             return False
-        found = (self.thrust.sample(t, acc, gyr, speeds, airborne)
+        # The converged filter's body-z airspeed lets the thrust check allow for a descent through the air
+        # (an updraft) once the vehicle has shown the model's thrust (see estimator.thrust_check).
+        w_air = float(airspeed_body[2]) if converged and airspeed_body is not None else None
+        found = (self.thrust.sample(t, acc, gyr, speeds, airborne, w_air)
                  or self.innovation.sample(t, nis, airborne and converged)
                  or self.domain.sample(t, airspeed_body if converged else None, airborne))
         if found:
