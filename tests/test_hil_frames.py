@@ -28,6 +28,16 @@ def _pymavlink_frames(msgs: list, sysid: int, compid: int) -> list[bytes]:
     return out
 
 
+def _as_pymavlink(m: Any) -> Any:
+    """pymavlink's message of the same fields as one of windseek's wire-order tuples (others unchanged)."""
+    if isinstance(m, hm.HilSensor):
+        return mavlink.MAVLink_hil_sensor_message(*m)
+    if isinstance(m, hm.HilStateQuaternion):
+        v: list[Any] = list(m)
+        return mavlink.MAVLink_hil_state_quaternion_message(v[0], v[1:5], *v[5:])
+    return m
+
+
 def test_crc16_is_mavlinks_crc() -> None:
     rng = np.random.default_rng(7)
     for n in (0, 1, 2, 17, 80, 279):
@@ -48,9 +58,10 @@ def test_frames_equal_pymavlink_for_everything_the_bridge_and_peripheral_send() 
     assert {"HIL_SENSOR", "HIL_GPS", "HIL_STATE_QUATERNION", "ESC_STATUS", "NAMED_VALUE_FLOAT", "HEARTBEAT"} <= kinds
     enc = FrameEncoder(7, 158)
     mine = [enc.encode(m) for m in msgs]
-    # HIL_SENSOR is a wire-order tuple (hm.HilSensor): pymavlink's message of the same fields packs the same.
+    # HIL_SENSOR and HIL_STATE_QUATERNION are wire-order tuples: pymavlink's message of the same fields packs the same.
     assert any(isinstance(m, hm.HilSensor) for m in msgs)
-    ref: list[Any] = [mavlink.MAVLink_hil_sensor_message(*m) if isinstance(m, hm.HilSensor) else m for m in msgs]
+    assert any(isinstance(m, hm.HilStateQuaternion) for m in msgs)
+    ref: list[Any] = [_as_pymavlink(m) for m in msgs]
     assert mine == _pymavlink_frames(ref, 7, 158)
     assert enc.seq == len(msgs) % 256
     # Decoded by pymavlink's parser: the same messages.
