@@ -147,3 +147,25 @@ def test_receive_mixed_stream_split_frames_and_garbage() -> None:
     finally:
         link.close()
         peer.close()
+
+
+def test_signed_answers_are_left_to_pymavlinks_parser() -> None:
+    """The fast path takes unsigned frames only (PX4's simulator link does not sign); a signed frame goes to
+    pymavlink's parser, which checks its signature, and decodes to the same values."""
+    enc = mavlink.MAVLink(None, 1, 1)
+    enc.signing.secret_key = bytes(range(32))
+    enc.signing.link_id = 2
+    enc.signing.sign_outgoing = True
+    signed = mavlink.MAVLink_hil_actuator_controls_message(4000, [0.5] * 4 + [0.0] * 12, 129, 1).pack(enc)
+    assert signed[2] & mavlink.MAVLINK_IFLAG_SIGNED
+    msgs, rest = split_controls(signed)
+    assert msgs == [] and rest == signed
+    link, peer = _pair()
+    try:
+        link._parser.signing.secret_key = bytes(range(32))
+        peer.sendall(signed)
+        got = link.receive(1.0)
+        assert [(m.get_type(), m.time_usec, m.mode) for m in got] == [("HIL_ACTUATOR_CONTROLS", 4000, 129)]
+    finally:
+        link.close()
+        peer.close()
