@@ -28,7 +28,7 @@ flown (windseek's truth, take-off included) and the distance of the end point fr
 
 Usage: ``WINDSEEK_ARDUPILOT_BIN=.../arducopter WINDSEEK_PX4_BIN=.../px4 python benchmarks/autopilot_wind.py
 [--autopilot ardupilot|px4] [--scenarios paper-s1,open-field] [--seeds 1000-1002] [--hover 120] [--step-at 110]
-[--keep DIR]``.
+[--keep DIR] [--rrd]`` (``--rrd``: each flight's Rerun recording beside its logs).
 """
 
 from __future__ import annotations
@@ -114,6 +114,11 @@ def hover(g: CopterGcs, until_s: float, route: list[tuple[float, ...]] | None = 
     raise RuntimeError("the hover did not reach its end time")
 
 
+def _rrd(args: argparse.Namespace, out: Path) -> list[str]:
+    """``--rrd``: windseek's Rerun recording of the flight (truth, the UKF, the autopilot's own estimate)."""
+    return ["--rrd", str(out / "windseek.rrd")] if args.rrd else []
+
+
 def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out: Path) -> dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     n = free_instance()
@@ -124,7 +129,7 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
     with open(out / "windseek.log", "wb") as wl, open(out / "estimator.log", "wb") as el:
         ws = subprocess.Popen(_cli("sitl", sc, "--ardupilot", "--ardupilot-port", str(p["json"]),
                                    "--ardupilot-mavlink", f"127.0.0.1:{p['peripheral']}", "--seed", str(seed),
-                                   "--exit-summary", str(out / "windseek.json")),
+                                   "--exit-summary", str(out / "windseek.json"), *_rrd(args, out)),
                               cwd=REPO, stdout=wl, stderr=subprocess.STDOUT)  # fmt: skip
         wait_for_text(out / "windseek.log", LISTENING, ws)
         h = load_scenario(sc).sensors.home
@@ -158,7 +163,7 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
     env = {f"PX4_PARAM_{k}": f"{v:g}" for k, v in EKF2_DRAG.items()}
     with open(out / "windseek.log", "wb") as wl, open(out / "estimator.log", "wb") as el:
         ws = subprocess.Popen(_cli("sitl", sc, "--px4", "--px4-port", str(p["sim"]), "--px4-free", "--seed", str(seed),
-                                   "--exit-summary", str(out / "windseek.json")),
+                                   "--exit-summary", str(out / "windseek.json"), *_rrd(args, out)),
                               cwd=REPO, stdout=wl, stderr=subprocess.STDOUT)  # fmt: skip
         px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0, extra_env=env).start()
         est = subprocess.Popen(_cli("estimator", "--connect", f"udpout://127.0.0.1:{p['gcs']}", "--esc-component",
@@ -265,6 +270,8 @@ def main() -> int:
     ap.add_argument("--speedup", type=float, default=5.0)
     ap.add_argument("--keep", default=None)
     ap.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot")
+    ap.add_argument("--rrd", action="store_true", help="also write each flight's Rerun recording (windseek.rrd in "
+                    "its --keep directory): the truth, windseek's UKF and the autopilot's own estimate")
     args = ap.parse_args()
     if args.autopilot == "px4":
         from sitl.hil.px4_process import px4_binary

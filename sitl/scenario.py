@@ -21,6 +21,7 @@ from sitl.autopilot.controller import ControllerGains
 from sitl.autopilot.flight_modes import FlightConfig, ItemKind, MissionItem
 from sitl.parsing import ScenarioError, boolean, number, table, vec3
 from sitl.scenario_wind import parse_turbulence, parse_urban, parse_wind, parse_wind_model
+from sitl.world.geomag import earth_field_ned_gauss
 from sitl.world.plume.setup import PlumeSetup, parse_plume_table
 from sitl.world.sensors import (
     BaroConfig,
@@ -188,6 +189,20 @@ def _parse_start(tbl: Any) -> Start:
     return start
 
 
+def _parse_mag(mag: Any, home: Any) -> MagConfig:
+    """``[sensors.mag]``; without ``field_ned_gauss`` the World Magnetic Model's field at the home (as the
+    autopilots assume it: :mod:`sitl.world.geomag`)."""
+    cfg = _parse_dataclass("sensors.mag", MagConfig, mag)
+    if isinstance(mag, dict) and "field_ned_gauss" in mag:
+        return cfg
+    h = _parse_dataclass("sensors.home", HomeConfig, home)
+    if (h.lat_deg, h.lon_deg) == (HomeConfig.lat_deg, HomeConfig.lon_deg):
+        return cfg  # the default home's field is the dataclass default (no model evaluation)
+    if not (-90 <= h.lat_deg <= 90 and -180 <= h.lon_deg <= 180):
+        return cfg  # validate() names the bad home
+    return replace(cfg, field_ned_gauss=earth_field_ned_gauss(h.lat_deg, h.lon_deg, h.alt_m))
+
+
 def _parse_sensors(tbl: Any, physics_rate_hz: float) -> SensorSuiteConfig:
     sens = table("sensors", tbl, {"imu", "esc", "gnss", "baro", "mag", "temperature", "home"})
     sensors = SensorSuiteConfig(
@@ -195,7 +210,7 @@ def _parse_sensors(tbl: Any, physics_rate_hz: float) -> SensorSuiteConfig:
         esc=_parse_dataclass("sensors.esc", EscConfig, sens.get("esc")),
         gnss=_parse_dataclass("sensors.gnss", GnssConfig, sens.get("gnss")),
         baro=_parse_dataclass("sensors.baro", BaroConfig, sens.get("baro")),
-        mag=_parse_dataclass("sensors.mag", MagConfig, sens.get("mag")),
+        mag=_parse_mag(sens.get("mag"), sens.get("home")),
         temperature=_parse_dataclass("sensors.temperature", TemperatureConfig, sens.get("temperature")),
         home=_parse_dataclass("sensors.home", HomeConfig, sens.get("home")),
     )

@@ -69,8 +69,8 @@ def test_model_thrust_is_the_rotor_models_at_zero_airspeed() -> None:
         z = wrench(v, np.zeros(3), np.zeros(3), w)[2]
         assert -z == pytest.approx(chk._a * float(np.sum(w**2)) + chk._b * float(np.sum(w)), rel=1e-9)
     lo, hi = chk.band
-    # The identified domain with a 25 % margin (|u|, |v| to 11 m/s, w within +-3.7 m/s): 0.57-1.37, widened
-    # by 10 %.
+    # The still-air band: the model's ratio at the rotor speed that carries the weight, |u|, |v| to 11 m/s,
+    # w from a 3.8 m/s climb to a 1 m/s descent through the air: 0.54-1.30, widened by 10 %.
     assert 0.45 < lo < 0.6 and 1.35 < hi < 1.6
 
 
