@@ -28,6 +28,16 @@ def _pymavlink_frames(msgs: list, sysid: int, compid: int) -> list[bytes]:
     return out
 
 
+def _as_pymavlink(m: Any) -> Any:
+    """pymavlink's message of the same fields as one of windseek's wire-order tuples (others unchanged)."""
+    if isinstance(m, hm.HilSensor):
+        return mavlink.MAVLink_hil_sensor_message(*m)
+    if isinstance(m, hm.HilStateQuaternion):
+        v: list[Any] = list(m)
+        return mavlink.MAVLink_hil_state_quaternion_message(v[0], v[1:5], *v[5:])
+    return m
+
+
 def test_crc16_is_mavlinks_crc() -> None:
     rng = np.random.default_rng(7)
     for n in (0, 1, 2, 17, 80, 279):
@@ -48,9 +58,10 @@ def test_frames_equal_pymavlink_for_everything_the_bridge_and_peripheral_send() 
     assert {"HIL_SENSOR", "HIL_GPS", "HIL_STATE_QUATERNION", "ESC_STATUS", "NAMED_VALUE_FLOAT", "HEARTBEAT"} <= kinds
     enc = FrameEncoder(7, 158)
     mine = [enc.encode(m) for m in msgs]
-    # HIL_SENSOR is a wire-order tuple (hm.HilSensor): pymavlink's message of the same fields packs the same.
+    # HIL_SENSOR and HIL_STATE_QUATERNION are wire-order tuples: pymavlink's message of the same fields packs the same.
     assert any(isinstance(m, hm.HilSensor) for m in msgs)
-    ref: list[Any] = [mavlink.MAVLink_hil_sensor_message(*m) if isinstance(m, hm.HilSensor) else m for m in msgs]
+    assert any(isinstance(m, hm.HilStateQuaternion) for m in msgs)
+    ref: list[Any] = [_as_pymavlink(m) for m in msgs]
     assert mine == _pymavlink_frames(ref, 7, 158)
     assert enc.seq == len(msgs) % 256
     # Decoded by pymavlink's parser: the same messages.
@@ -133,6 +144,28 @@ def test_receive_mixed_stream_split_frames_and_garbage() -> None:
         assert link.counters["rx_bad"] >= 1
         assert [m.time_usec for m in after][-3:] == [8000, 8000, 8000]
         assert all(m.get_type() == "HIL_ACTUATOR_CONTROLS" for m in after)
+    finally:
+        link.close()
+        peer.close()
+
+
+def test_signed_answers_are_left_to_pymavlinks_parser() -> None:
+    """The fast path takes unsigned frames only (PX4's simulator link does not sign); a signed frame goes to
+    pymavlink's parser, which checks its signature, and decodes to the same values."""
+    enc = mavlink.MAVLink(None, 1, 1)
+    enc.signing.secret_key = bytes(range(32))
+    enc.signing.link_id = 2
+    enc.signing.sign_outgoing = True
+    signed = mavlink.MAVLink_hil_actuator_controls_message(4000, [0.5] * 4 + [0.0] * 12, 129, 1).pack(enc)
+    assert signed[2] & mavlink.MAVLINK_IFLAG_SIGNED
+    msgs, rest = split_controls(signed)
+    assert msgs == [] and rest == signed
+    link, peer = _pair()
+    try:
+        link._parser.signing.secret_key = bytes(range(32))
+        peer.sendall(signed)
+        got = link.receive(1.0)
+        assert [(m.get_type(), m.time_usec, m.mode) for m in got] == [("HIL_ACTUATOR_CONTROLS", 4000, 129)]
     finally:
         link.close()
         peer.close()

@@ -104,6 +104,9 @@ def test_output_checks() -> None:
         assert v.why
     assert mm.check([0.5, 0.5, 0.5, -0.5] + [0.0] * 12, 129).problem == "out_of_range"
     assert mm.check([0.5, 0.5, 0.5, math.inf] + [0.0] * 12, 1).problem == "non_finite"
+    # The finite test is one sum: finite values whose sum overflows are not taken for NaN or infinity.
+    assert mm.check([1e308, 1e308, 0.5, 0.5] + [0.0] * 12, 129).problem == "out_of_range"
+    assert mm.check([0.5] * 4 + [0.0] * 11 + [-math.inf], 129).problem == "non_finite"
 
 
 def test_px4_env_for_sitl() -> None:

@@ -10,8 +10,8 @@ module does the same with one ``struct`` call and a C-level CRC per frame:
   payload truncated as MAVLink 2 requires), byte for byte what ``message.pack(mav)`` produces
   (a test checks it for every message the HIL link and the peripheral send);
 - :func:`split_controls` takes the HIL_ACTUATOR_CONTROLS frames PX4 answers each step off the
-  front of the received bytes, checks their CRC and decodes them; everything else (and anything
-  that does not check out) goes to pymavlink's robust parser, unchanged.
+  front of the received bytes, checks their CRC and decodes them into :class:`Controls` tuples;
+  everything else (and anything that does not check out) goes to pymavlink's robust parser, unchanged.
 
 The CRC is MAVLink's CRC-16/MCRF4XX (the reflected CCITT polynomial, init 0xFFFF). The standard
 library's ``binascii.crc_hqx`` computes the non-reflected CCITT CRC in C; a reflected CRC is the
@@ -25,7 +25,7 @@ import binascii
 import re
 import struct
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from wire.dialect import mavlink
 
@@ -38,6 +38,7 @@ HEADER_LEN = 10
 MSG_ID_HIL_ACTUATOR_CONTROLS = mavlink.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS
 _CONTROLS = mavlink.MAVLink_hil_actuator_controls_message
 _CONTROLS_LEN = _CONTROLS.unpacker.size  # 81: time_usec, flags, controls[16], mode
+_CONTROLS_UNPACK = _CONTROLS.unpacker.unpack_from
 
 
 def crc16(data: bytes) -> int:
@@ -111,30 +112,57 @@ class FrameEncoder:
         return self.frame(plan[0], plan[1], plan[2](m))
 
 
-def _controls(buf: bytes, start: int, plen: int) -> Any:
-    """The HIL_ACTUATOR_CONTROLS message of a checked frame at ``buf[start:]`` (payload ``plen`` bytes)."""
-    p = buf[start + HEADER_LEN : start + HEADER_LEN + plen]
-    if plen < _CONTROLS_LEN:
-        p = p + bytes(_CONTROLS_LEN - plen)  # MAVLink 2 truncates trailing zeros
-    v = _CONTROLS.unpacker.unpack_from(p)
-    m = _CONTROLS(v[0], v[2:18], v[18], v[1])
+class Controls(NamedTuple):
+    """One decoded HIL_ACTUATOR_CONTROLS: pymavlink's field names and units (``controls``: 16 outputs,
+    ``mode``: MAV_MODE_FLAG bits, ``flags``: bit 0 = lockstep), its sender and its frame's bytes.
+
+    A tuple rather than pymavlink's message object: building that object (a header object, several
+    buffers, a dozen attribute writes) was a good part of windseek's work per lockstep step. The
+    ``get_*`` methods are pymavlink's, so code that handles messages reads it the same way."""
+
+    time_usec: int
+    controls: tuple[float, ...]
+    mode: int
+    flags: int
+    src_system: int
+    src_component: int
+    seq: int
+    frame: bytes
+
+    def get_type(self) -> str:
+        return "HIL_ACTUATOR_CONTROLS"
+
+    def get_srcSystem(self) -> int:  # noqa: N802 - pymavlink's name
+        return self.src_system
+
+    def get_srcComponent(self) -> int:  # noqa: N802 - pymavlink's name
+        return self.src_component
+
+    def get_seq(self) -> int:
+        return self.seq
+
+    def get_msgbuf(self) -> bytes:
+        return self.frame
+
+
+def _controls(buf: bytes, start: int, plen: int) -> Controls:
+    """The HIL_ACTUATOR_CONTROLS of a checked frame at ``buf[start:]`` (payload ``plen`` bytes)."""
     frame = buf[start : start + HEADER_LEN + plen + 2]
-    m._header = mavlink.MAVLink_header(MSG_ID_HIL_ACTUATOR_CONTROLS, 0, buf[start + 3], plen, buf[start + 4],
-                                       buf[start + 5], buf[start + 6])  # fmt: skip
-    m._msgbuf = bytearray(frame)
-    m._payload = p[:plen]
-    m._crc = _CRC.unpack_from(frame, HEADER_LEN + plen)[0]
-    return m
+    if plen == _CONTROLS_LEN:
+        v = _CONTROLS_UNPACK(frame, HEADER_LEN)
+    else:  # MAVLink 2 truncates trailing zeros
+        v = _CONTROLS_UNPACK(frame[HEADER_LEN : HEADER_LEN + plen] + bytes(_CONTROLS_LEN - plen))
+    return Controls(v[0], v[2:18], v[18], v[1], frame[5], frame[6], frame[4], frame)
 
 
-def split_controls(buf: bytes) -> tuple[list[Any], bytes]:
+def split_controls(buf: bytes) -> tuple[list[Controls], bytes]:
     """HIL_ACTUATOR_CONTROLS frames at the front of ``buf``, decoded, and the bytes after them.
 
     Only whole, unsigned MAVLink 2 frames of that message whose CRC checks are taken; the first
     byte that is anything else ends the scan and the rest is returned for the generic parser
     (which counts what is bad). The caller feeds only data that starts at a frame boundary.
     """
-    out: list[Any] = []
+    out: list[Controls] = []
     i, n = 0, len(buf)
     while n - i >= HEADER_LEN + 2 and buf[i] == MAGIC_V2 and buf[i + 2] == 0:  # incompat flags 0: unsigned
         plen = buf[i + 1]

@@ -117,20 +117,59 @@ def hil_gps(g: GnssSample, cfg: GnssConfig, unix0_us: int) -> Any:
     )  # fmt: skip
 
 
-def hil_state_quaternion(row: np.ndarray, home: HomeConfig) -> Any:
+class HilStateQuaternion(NamedTuple):
+    """HIL_STATE_QUATERNION as a plain tuple in wire order (50 Hz, every 5th lockstep step: a pymavlink
+    object and its generic packing cost more than the values). Field names and units are pymavlink's, the
+    quaternion spread over ``q1..q4`` (:attr:`attitude_quaternion` gives it as pymavlink does)."""
+
+    time_usec: int
+    q1: float
+    q2: float
+    q3: float
+    q4: float
+    rollspeed: float
+    pitchspeed: float
+    yawspeed: float
+    lat: int
+    lon: int
+    alt: int
+    vx: int
+    vy: int
+    vz: int
+    ind_airspeed: int
+    true_airspeed: int
+    xacc: int
+    yacc: int
+    zacc: int
+
+    @property
+    def attitude_quaternion(self) -> list[float]:
+        return [self.q1, self.q2, self.q3, self.q4]
+
+    def get_type(self) -> str:
+        return "HIL_STATE_QUATERNION"
+
+
+setattr(HilStateQuaternion, "WIRE", (mavlink.MAVLINK_MSG_ID_HIL_STATE_QUATERNION,  # noqa: B010
+                                     mavlink.MAVLink_hil_state_quaternion_message.crc_extra,
+                                     mavlink.MAVLink_hil_state_quaternion_message.unpacker))  # fmt: skip
+
+
+def hil_state_quaternion(row: np.ndarray, home: HomeConfig) -> HilStateQuaternion:
     """Ground truth from a truth row of the world (:mod:`sitl.world.kernel`: time, specific force FRD,
     rates FRD, position NED, velocity NED, attitude, wind NED, all at one IMU sample instant)."""
+    r = row.tolist()  # plain floats: the same IEEE arithmetic as numpy's scalars, without their overhead
     lat, lon, alt = ned_to_geodetic(row[T_POS], home)
-    v = row[T_VEL]
-    air = float(np.linalg.norm(v - row[T_WIND]))
+    air = float(np.linalg.norm(row[T_VEL] - row[T_WIND]))  # numpy's norm: the same value as before, bit for bit
     air_cm = max(0, min(65535, int(round(air * 100))))
-    f = row[T_SPECIFIC_FORCE] * (1000.0 / G0)  # mG
-    r = row[T_RATES]
-    return mavlink.MAVLink_hil_state_quaternion_message(
-        hil_time_us(float(row[T_TIME])), [float(q) for q in row[T_QUAT]], float(r[0]), float(r[1]), float(r[2]),
-        int(round(lat * 1e7)), int(round(lon * 1e7)), int(round(alt * 1000)),
-        _i16(v[0] * 100), _i16(v[1] * 100), _i16(v[2] * 100), air_cm, air_cm, _i16(f[0]), _i16(f[1]), _i16(f[2]),
-    )  # fmt: skip
+    k = 1000.0 / G0  # m/s^2 -> mG
+    f, v = r[T_SPECIFIC_FORCE], r[T_VEL]
+    q1, q2, q3, q4 = r[T_QUAT]
+    p, q, rr = r[T_RATES]
+    return HilStateQuaternion(hil_time_us(r[T_TIME]), q1, q2, q3, q4, p, q, rr, int(round(lat * 1e7)),
+                              int(round(lon * 1e7)), int(round(alt * 1000)), _i16(v[0] * 100), _i16(v[1] * 100),
+                              _i16(v[2] * 100), air_cm, air_cm, _i16(f[0] * k), _i16(f[1] * k),
+                              _i16(f[2] * k))  # fmt: skip
 
 
 def esc_status(t: float, speeds_rad_s: np.ndarray) -> Any:

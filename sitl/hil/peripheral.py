@@ -27,7 +27,6 @@ PX4's own ESC_STATUS in SITL (component 1) is a placeholder (``simulator_mavlink
 from __future__ import annotations
 
 import contextlib
-import select
 import socket
 from collections import Counter
 from typing import Any
@@ -112,10 +111,7 @@ class UdpPeripheral:
         out: list[Any] = []
         for _ in range(64):  # bounded: at most 64 datagrams per call
             try:
-                ready, _, _ = select.select([self.sock], [], [], 0.0)
-                if not ready:
-                    break
-                data = self.sock.recv(65536)
+                data = self.sock.recv(65536)  # a non-blocking socket: no select() needed to learn it is empty
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:

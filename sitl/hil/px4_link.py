@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import select
 import socket
+import struct
 import time
 from collections import Counter
 from typing import Any
@@ -28,6 +29,15 @@ from wire.resync import ResyncMAVLink
 
 #: Wall seconds a TCP send may block on a peer that does not read.
 SEND_TIMEOUT_S = 2.0
+#: Wall seconds one blocking TCP read waits at most (the kernel's receive timeout): a wait at least this
+#: long is one read, and its caller tries again until its own deadline.
+RECV_SLICE_S = 0.05
+
+
+def _timeval(seconds: float) -> bytes:
+    """A ``struct timeval`` for SO_SNDTIMEO / SO_RCVTIMEO."""
+    sec = int(seconds)
+    return struct.pack("ll", sec, int(round((seconds - sec) * 1e6)))
 
 
 class SimLink:
@@ -79,18 +89,20 @@ class SimLink:
         self._write(b"".join(frames))
         self.counters["tx_messages"] += len(msgs)
 
-    def receive(self, timeout_s: float) -> list[Any]:
-        """Messages that arrive within ``timeout_s`` (returns at the first batch; [] on timeout)."""
+    def _wait_read(self, timeout_s: float) -> bytes:
+        """The bytes that arrive within ``timeout_s`` (b"" on timeout)."""
         fd = self.fileno()
         if fd is None:
-            return []
+            return b""
         try:
             ready, _, _ = select.select([fd], [], [], max(0.0, timeout_s))
         except (InterruptedError, ValueError, OSError):
-            return []
-        if not ready:
-            return []
-        data = self._read()
+            return b""
+        return self._read() if ready else b""
+
+    def receive(self, timeout_s: float) -> list[Any]:
+        """Messages that arrive within ``timeout_s`` (returns at the first batch; [] on timeout)."""
+        data = self._wait_read(timeout_s)
         if not data:
             return []
         self.counters["rx_bytes"] += len(data)
@@ -164,7 +176,11 @@ class TcpSimLink(SimLink):
             self.counters["replaced"] += 1
             self.drop()
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        conn.settimeout(SEND_TIMEOUT_S)
+        # A blocking socket with the kernel's timeouts, not Python's settimeout: with a Python timeout every send
+        # and recv polls the socket first (two more system calls per lockstep step).
+        conn.setblocking(True)
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, _timeval(SEND_TIMEOUT_S))
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(RECV_SLICE_S))
         self.conn, self.peer = conn, addr
         self._parser = self._new_parser()
         self.counters["connections"] += 1
@@ -182,9 +198,16 @@ class TcpSimLink(SimLink):
         assert self.conn is not None
         try:
             self.conn.sendall(data)
-        except (TimeoutError, OSError):
+        except OSError:  # the send timeout (EAGAIN), a reset or a closed peer
             self.counters["tx_dropped_peer"] += 1
             self.drop()
+
+    def _wait_read(self, timeout_s: float) -> bytes:
+        # The lockstep wait: one blocking recv (the kernel's RECV_SLICE_S timeout) instead of select + recv;
+        # shorter waits (real-time steps) take the select path.
+        if self.conn is None or timeout_s < RECV_SLICE_S:
+            return super()._wait_read(timeout_s)
+        return self._read()
 
     def _read(self) -> bytes:
         if self.conn is None:

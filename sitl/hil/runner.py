@@ -32,6 +32,7 @@ from enum import Enum
 from typing import Any
 
 from sitl.hil.bridge import HilBridge
+from sitl.hil.frames import Controls
 from sitl.hil.motors import FLAG_LOCKSTEP
 from sitl.hil.px4_link import SimLink, TcpSimLink
 
@@ -245,7 +246,7 @@ class HilRunner:
 
     # ------------------------------------------------------------------ input
     def _on_px4(self, m: Any) -> None:
-        mtype = m.get_type()
+        mtype = "HIL_ACTUATOR_CONTROLS" if type(m) is Controls else m.get_type()  # the one message of every step
         if mtype == "HIL_ACTUATOR_CONTROLS":
             self._learn_system(m.get_srcSystem())
             self.counters["answers"] += 1
