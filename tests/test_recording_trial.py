@@ -114,13 +114,18 @@ def test_posterior_layer_with_a_synthetic_grid(tmp_path: Path) -> None:
     log = RrdLog(path)
     t, fmt = log.column("map/posterior/image", "Image:format")
     np.testing.assert_allclose(t, np.arange(5.0))
-    assert fmt[-1][0]["width"] == 20 and fmt[-1][0]["height"] == 40  # 2 m cells over 40 m east x 80 m north
+    # 2 m cells over 40 m east x 80 m north; only the visibly drawn cells go into the image (scene._visible_part),
+    # so the image is that grid or a cut of it, on the same 2 m cells and inside the grid's corners.
+    w, h = fmt[-1][0]["width"], fmt[-1][0]["height"]
+    assert 0 < w <= 20 and 0 < h <= 40 and w * h < 20 * 40, (w, h)
     _, tr = log.vectors("map/posterior/image", "Transform3D:translation")
     _, sc = log.vectors("map/posterior/image", "Transform3D:scale")
-    np.testing.assert_allclose(tr[-1], [-20.0, -80.0, 0.0])  # map (x, y) = (east, -north) of the north-west corner
     np.testing.assert_allclose(sc[-1], [2.0, 2.0, 1.0])
+    # map (x, y) = (east, -north) of the image's north-west corner, on the grid's 2 m lattice and inside it
+    assert -20.0 <= tr[-1][0] <= 20.0 - 2.0 * w and -80.0 <= tr[-1][1] <= -2.0 * h
+    assert tr[-1][0] % 2.0 == 0.0 and tr[-1][1] % 2.0 == 0.0
     _, buf = log.column("map/posterior/image", "Image:buffer")
-    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(40, 20, 4)
+    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(h, w, 4)
     row, col = np.unravel_index(np.argmax(img[..., 3]), img.shape[:2])
     x, y = tr[-1][0] + (col + 0.5) * 2.0, tr[-1][1] + (row + 0.5) * 2.0  # pixel centre on the map
     cn, ce = g.centre()
