@@ -123,18 +123,9 @@ class _Telemetry:
 
     def wait(self, types: list[str] | str, timeout_s: float, cond: Any = None) -> Any:
         """The next queued answer of ``types`` (satisfying ``cond``) within ``timeout_s``, None if none came."""
-        want = [types] if isinstance(types, str) else types
-        deadline = time.monotonic() + timeout_s
-        with self._cv:
-            while True:
-                while self._replies:
-                    msg = self._replies.popleft()
-                    if msg.get_type() in want and (cond is None or cond(msg)):
-                        return msg
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._cv.wait(left)
+        from sitl.ardupilot.gcs import next_answer
+
+        return next_answer(self._cv, self._replies, types, timeout_s, cond)
 
     def clear(self) -> None:
         """Forget the answers queued so far (before a request whose answer to wait for)."""

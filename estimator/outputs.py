@@ -84,6 +84,7 @@ class EstimatorOutputs:
     _rates: np.ndarray
     _p: np.ndarray
     _fz_ref: float
+    _bias_cov: tuple[float, np.ndarray] | None  # (filter time, unseen_bias_cov) of the last evaluation
     _i_scale: int
     _bias_idx: np.ndarray
     direction: DirectionFilter
@@ -124,7 +125,7 @@ class EstimatorOutputs:
         if sb <= 0.0 or self._R is None or self._w_rot is None or (self._bias_idx[0] >= 0 and self._bias_idx[1] >= 0):
             return np.zeros((2, 2))
         t = -math.inf if self.t is None else self.t
-        cached = getattr(self, "_bias_cov", None)
+        cached = self._bias_cov
         if cached is not None and 0.0 <= t - cached[0] < BIAS_COV_EVERY_S:
             return cached[1]
         cov = unseen_bias_wind_cov(self.x, self._R, self._rates, self._w_rot, self._p, self._i_scale,

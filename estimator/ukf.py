@@ -149,6 +149,7 @@ class WindEstimator(EstimatorOutputs):
         self._nu_slow = [0.0, 0.0]  # its slow baseline
         self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
         self._dt_last = 0.0
+        self._bias_cov: tuple[float, np.ndarray] | None = None  # EstimatorOutputs.unseen_bias_cov's cache
         self.imu_rate = ImuRate(cfg.accel_noise_rate_hz)  # the accelerometer variance per sample at the stream's rate
         self.transients = 0  # times the transient detector fired
         self.last_nis = math.nan  # the last accelerometer update's normalized innovation squared

@@ -28,7 +28,6 @@ Conventions: SI, NED, wind = air-mass velocity NED; simulation seconds (= the au
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -137,13 +136,7 @@ class AutopilotRecorder:
         s.extra[f"{self.autopilot} wind vs truth"] = _rmse_line(d["autopilot_wind"])
         s.notes.append(f"Wind: {ESTIMATE_LABEL} (windseek's estimator, WIND_COV) orange in its ±2σ band, "
                        f"{self.autopilot} (the autopilot's own estimate) green, truth blue.")  # fmt: skip
-        if math.isfinite(ph.t_declared) and math.isfinite(ph.t_arm):
-            s.time_to_declaration_s = round(ph.t_declared - ph.t_arm, 2)
-        if math.isfinite(ph.t_arm):
-            end = ph.t_disarm if math.isfinite(ph.t_disarm) else self.bridge.t
-            s.mission_time_s = round(end - ph.t_arm, 2)
-        if rec.declaration is None and self.strategy:
-            s.cause = "no declaration received"
+        s.fill_from_phases(ph, rec.declaration is not None, self.bridge.t)
         self.tally.fill(s)
         return s
 

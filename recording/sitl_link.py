@@ -17,7 +17,6 @@ Conventions: SI, NED, wind = air-mass velocity NED; simulation seconds.
 from __future__ import annotations
 
 import bisect
-import math
 from collections import deque
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -122,13 +121,7 @@ class LinkRecorder:
         sim = self.link.sim
         s = RunSummary(kind="windseek sitl (truth and the wire)", scenario=sim.scenario.name,
                        strategy=self.strategy, seed=sim.seed, wind_source=self.wire.source_line())  # fmt: skip
-        if math.isfinite(ph.t_declared) and math.isfinite(ph.t_arm):
-            s.time_to_declaration_s = round(ph.t_declared - ph.t_arm, 2)
-        if math.isfinite(ph.t_arm):
-            end = ph.t_disarm if math.isfinite(ph.t_disarm) else self.link.sim.t
-            s.mission_time_s = round(end - ph.t_arm, 2)
-        if rec.declaration is None and self.strategy:
-            s.cause = "no declaration received"
+        s.fill_from_phases(ph, rec.declaration is not None, self.link.sim.t)
         self.tally.fill(s)
         return s
 

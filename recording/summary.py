@@ -98,6 +98,18 @@ class RunSummary:
                 self.outcome = "declared (no true source to compare with)"
 
     # ------------------------------------------------------------------ storage
+    def fill_from_phases(self, ph: Any, declared: bool, now_s: float) -> None:
+        """The times and the cause a recording that listens to the wire knows: time to declaration and mission
+        time from the phases ``ph`` (a :class:`recording.phases.PhaseTracker`; a flight still armed ends at
+        ``now_s``), and "no declaration received" for a strategy's run without one (``declared`` False)."""
+        if math.isfinite(ph.t_declared) and math.isfinite(ph.t_arm):
+            self.time_to_declaration_s = round(ph.t_declared - ph.t_arm, 2)
+        if math.isfinite(ph.t_arm):
+            end = ph.t_disarm if math.isfinite(ph.t_disarm) else now_s
+            self.mission_time_s = round(end - ph.t_arm, 2)
+        if not declared and self.strategy:
+            self.cause = "no declaration received"
+
     def to_json(self) -> str:
         return json.dumps(_finite(asdict(self)), allow_nan=False)
 

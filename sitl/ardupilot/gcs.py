@@ -51,6 +51,24 @@ def upload_items(
     return None
 
 
+def next_answer(cv: threading.Condition, queue: deque[Any], types: list[str] | str, timeout_s: float,
+                cond: Any = None) -> Any:  # fmt: skip
+    """The next message in ``queue`` (filled by a reader thread that notifies ``cv``) of ``types`` and satisfying
+    ``cond``, within ``timeout_s`` wall seconds; None if none came. Messages taken before it are dropped."""
+    deadline = time.monotonic() + timeout_s
+    want = [types] if isinstance(types, str) else types
+    with cv:
+        while True:
+            while queue:
+                msg = queue.popleft()
+                if msg.get_type() in want and (cond is None or cond(msg)):
+                    return msg
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            cv.wait(left)
+
+
 class CopterGcs:
     """A pymavlink ground station on ArduCopter's SERIAL0 (MAVLink 2), with ArduCopter's mode numbers.
 
@@ -139,18 +157,7 @@ class CopterGcs:
 
     def _wait(self, types: list[str] | str, timeout_s: float, cond: Any = None) -> Any:
         """Like :meth:`recv` without clearing what came since the last clear (answers to a request)."""
-        deadline = time.monotonic() + timeout_s
-        want = [types] if isinstance(types, str) else types
-        with self._cv:
-            while True:
-                while self.queue:
-                    msg = self.queue.popleft()
-                    if msg.get_type() in want and (cond is None or cond(msg)):
-                        return msg
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._cv.wait(left)
+        return next_answer(self._cv, self.queue, types, timeout_s, cond)
 
     def set_mode(self, name: str) -> int | None:
         return self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, COPTER_MODES[name])
