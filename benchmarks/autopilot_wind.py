@@ -137,7 +137,8 @@ def trial(binary: Path, scenario: str, seed: int, args: argparse.Namespace, out:
                             f"{h.alt_m:g},0", speedup=args.speedup, params=[PARAMS_FILE, drag]).start()  # fmt: skip
         est = subprocess.Popen(_cli("estimator", "--connect", f"tcpout://127.0.0.1:{p['companion']}",
                                     "--esc-component", "158", "--json", "--link-timeout", "60", "--connect-timeout",
-                                    "120"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)  # fmt: skip
+                                    "120", *_est_args(args, out)),
+                               cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)  # fmt: skip
         g = CopterGcs(p["gcs"])
         try:
             hover(g, args.step_at - 30.0 + args.hover, route_items(sc))
@@ -168,7 +169,8 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
         px4 = Px4Sitl(binary, n, out / "px4", out / "px4.log", speed=10.0, extra_env=env).start()
         est = subprocess.Popen(_cli("estimator", "--connect", f"udpout://127.0.0.1:{p['gcs']}", "--esc-component",
                                     "158", "--imu-average", "2", "--json", "--link-timeout", "60",
-                                    "--connect-timeout", "120"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)
+                                    "--connect-timeout", "120", *_est_args(args, out)),
+                               cwd=REPO, stdout=subprocess.DEVNULL, stderr=el)  # fmt: skip
         tel = _Telemetry(p["api"])
         route = route_items(sc)
         try:
@@ -193,6 +195,11 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
             stop_process(ws)
             px4.stop()
     return _rows(scenario, seed, json.loads((out / "windseek.json").read_text()), args, "ekf2")
+
+
+def _est_args(args: argparse.Namespace, out: Path) -> list[str]:
+    """The estimator's input telemetry log (for ``benchmarks/compass_replay.py``) and its compass setting."""
+    return ["--tlog", str(out / "estimator.tlog"), "--compass" if args.compass else "--no-compass"]
 
 
 def fly_route_px4(tel: Any, route: list[tuple[float, ...]], timeout_s: float = 60.0) -> None:
@@ -270,6 +277,8 @@ def main() -> int:
     ap.add_argument("--speedup", type=float, default=5.0)
     ap.add_argument("--keep", default=None)
     ap.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot")
+    ap.add_argument("--compass", action=argparse.BooleanOptionalAction, default=True,
+                    help="the estimator's compass check of the autopilot's heading (estimator/compass.py)")
     ap.add_argument("--rrd", action="store_true", help="also write each flight's Rerun recording (windseek.rrd in "
                     "its --keep directory): the truth, windseek's UKF and the autopilot's own estimate")
     args = ap.parse_args()

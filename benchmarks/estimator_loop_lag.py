@@ -24,8 +24,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from estimator_stream import autopilot_messages, over_the_wire, record  # noqa: E402
 
-from estimator.live import LiveConfig, LiveCore, warm_up  # noqa: E402
-from estimator.worker import EstimatorWorker  # noqa: E402
+from estimator.live import LiveConfig, LiveCore
+from estimator.worker import (
+    EstimatorWorker,  # noqa: E402
+    warm_up,  # noqa: E402
+)
 from vehicle.vehicle_file import load_vehicle  # noqa: E402
 
 

@@ -4,37 +4,19 @@ Feed it pymavlink-like messages (``get_type()``, ``get_srcSystem()``, ``get_srcC
 fields as attributes) with :meth:`LiveCore.handle`; read :meth:`LiveCore.output` (the estimate,
 only when this filter made one), :meth:`LiveCore.take_notes` (one-line events to print) and
 :meth:`LiveCore.status_line`. ``windseek estimator`` wraps it with a pymavlink connection;
-``estimator.worker`` runs it in a thread for asyncio programs. What it does, once:
+``estimator.worker`` runs it in a thread for asyncio programs. What it does (in full in
+``estimator/README.md``, "The live core"):
 
-- **Lock-on.** It follows one autopilot: the system and component of the first HEARTBEAT whose
-  autopilot is not MAV_AUTOPILOT_INVALID (of ``target_system`` if given). Messages from any other
-  system or component are counted (``other_system``, ``other_component``) and ignored; a new
-  source is noted once. With ``esc_component`` set, the rotor telemetry (ESC_STATUS, RAW_RPM, ESC_INFO) comes from that
-  component of the autopilot's system instead of the autopilot's own (``windseek sitl --px4``: its
-  ESC model is component 158, while PX4 SITL streams a placeholder ESC_STATUS of its own).
-- **Inputs** (``live_select``, ``mavlink_decode``): chosen after ``select_window_s`` of autopilot
-  time and stated in one line; decoded to SI. Velocities wait until the IMU has caught up with
-  their time (at most ``max_pending_velocities``); ``imu_average`` IMU samples make one filter step.
-- **Rotor speeds**: ESC telemetry (ESC_STATUS, RAW_RPM; ESC_INFO failure flags block it), or the
-  actuator outputs (ACTUATOR_OUTPUT_STATUS, SERVO_OUTPUT_RAW port 0) through ``motor_output``
-  and the motor lag, advanced to every IMU sample (a new command acts from the next sample).
-- **Ground gate** (``ground_gate``): no samples while EXTENDED_SYS_STATE says on the ground or
-  landing, nor after the ground until the vehicle has climbed 0.5 m (the autopilot says "not
-  landed" while the rotors spin up on the ground); a filter that flew is replaced at the next
-  lift-off.
-- **Clock reset.** A reboot sets the autopilot's clock back to 0. Time stamps more than
-  ``reset_jump_s`` behind the newest (``reset_confirm`` in a row; a single stale one is dropped
-  and counted as ``clock_behind``), or SYSTEM_TIME's time_boot_ms going back, restart the filter
-  and the clock bookkeeping (``clock_resets``, ``restarts``); the chosen inputs stay.
-- **Model.** The force model is the vehicle file's (``--vehicle``). When the autopilot's HEARTBEAT
-  type is not a multirotor with the model's rotor count, or the user says the airframe differs
-  (``airframe``), :attr:`model_note` says that the wind is biased by the model mismatch. In steady
-  flight the model must fit the vehicle (``estimator.model_fit``: the rotors' thrust, and the
-  filter's airspeed inside the model's identified domain); nothing is published until it has been
-  judged to fit, and when it does not (PX4 SIH, another airframe, a wrong mass) that is said once,
-  :attr:`model_note` says it, and the wind is **withheld**: :meth:`LiveCore.output` returns None from
-  then on (so nothing publishes WIND_COV and a mission stops on an estimator fault). A biased wind
-  published with a large covariance would still be used by consumers that ignore the covariance.
+- **Lock-on** to one autopilot (the first HEARTBEAT not MAV_AUTOPILOT_INVALID, of ``target_system`` if
+  given); every other source is counted and ignored; rotor telemetry from ``esc_component`` if set.
+- **Inputs** (``live_select``, ``mavlink_decode``) chosen after ``select_window_s`` of autopilot time and
+  stated in one line; velocities wait for the IMU; ``imu_average`` IMU samples make one filter step;
+  rotor speeds from ESC telemetry or the actuator outputs through ``motor_output`` and the motor lag.
+- **Compass** (``compass``): the autopilot's heading is checked against its magnetometer and the
+  attitude corrected by the offset, its uncertainty stated in the covariance.
+- **Ground gate** (``ground_gate``), **clock resets** (a reboot restarts the filter) and the **model
+  check** (``model_fit``: nothing is published until the model has been judged to fit the vehicle;
+  when it does not, the wind is withheld, :meth:`LiveCore.output` returns None from then on).
 
 Times are the autopilot's boot clock, s; wind = air-mass velocity NED, m/s; covariance (m/s)^2.
 """
@@ -49,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from estimator import mavlink_decode as dec
+from estimator.compass import CompassConfig, CompassHeading
 from estimator.config import EstimatorConfig
 from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withheld
 from estimator.live_select import InputSelection
@@ -80,6 +63,7 @@ class LiveConfig:
     esc_order: tuple[int, ...] | None = None  # ESC number (0-based) -> rotor index (None: the same numbers)
     outputs: OutputMap | None = None  # actuator outputs -> rotor speeds (None: OutputMap.for_vehicle, px4)
     airframe: str | None = None  # the vehicle flown, when it is not the vehicle file's
+    compass: CompassConfig = CompassConfig()  # the autopilot's heading checked against its magnetometer
     select_window_s: float = 1.0
     reset_jump_s: float = 1.0
     reset_confirm: int = 3
@@ -102,24 +86,6 @@ class LiveOutput:
     cov_ned: np.ndarray
 
 
-def warm_up(config: LiveConfig) -> None:
-    """Run a throw-away filter over a few hovering samples, so that every numba kernel is compiled (or
-    loaded from the cache) before the first real sample. On a fresh machine that takes 15-25 s, from
-    the cache still a fraction of a second that holds the GIL: do it before an event loop starts."""
-    est = WindEstimator(config.vehicle, config.estimator)
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    est.set_attitude(0.0, q)
-    est.set_rotor_speeds(0.0, np.full(4, 393.0))
-    for i in range(1, 40):
-        t = 0.004 * i
-        est.imu(t, np.array([0.0, 0.0, -9.81]), np.zeros(3))
-        if i % 10 == 0:
-            est.set_attitude(t, q)
-            est.gnss_velocity(t, np.zeros(3))
-            est.gnss_velocity(t + 0.001, np.zeros(2))
-    est.estimate()
-
-
 class LiveCore:
     """Lock-on, input selection, ground gate, clock-reset handling and the UKF on a message stream."""
 
@@ -134,6 +100,9 @@ class LiveCore:
         self.restarts = 0
         self.model_note: str | None = None
         self.fit = ModelFit(cfg.vehicle)
+        self.compass = CompassHeading(cfg.compass)
+        self._q_pub: np.ndarray | None = None  # the attitude the autopilot published last
+        self.autopilot_yaw_sigma: float | None = None  # the heading 1-sigma the autopilot states (rad)
         self._esc_order = cfg.esc_order or tuple(range(cfg.vehicle.n_rotors))
         if cfg.airframe:
             self.model_note = self._mismatch(f"the vehicle is {cfg.airframe}")
@@ -239,6 +208,10 @@ class LiveCore:
             self.landed_state = int(msg.landed_state)
         elif mtype == "ESC_INFO":
             self._esc_info(msg)
+        elif mtype in dec.POSITION_TYPES and self.compass.declination_rad is None:
+            self._locate(msg)
+        elif mtype == "ODOMETRY":
+            self.autopilot_yaw_sigma = dec.yaw_sigma(msg)
         group = dec.GROUP_OF.get(mtype)
         if group is None:
             return
@@ -252,6 +225,8 @@ class LiveCore:
             self.note(self.select.inputs_line() + f" ({group} now from {mtype})")
         if self.select.chosen.get(group) != mtype:
             return
+        if group in ("imu", "attitude"):  # on the ground too: the heading is checked before take-off
+            self._compass(group, msg, t if t is not None else self.t)
         paused = self.paused()
         if self.config.ground_gate:
             self._liftoff.update(self.t, self.landed_state == LANDED_ON_GROUND, self._height(mtype, msg))
@@ -351,6 +326,27 @@ class LiveCore:
     def _mismatch(self, what: str) -> str:
         return f"model mismatch: {what}, but the force model is {self.config.vehicle.name}'s: the wind is biased"
 
+    def _locate(self, msg: Any) -> None:
+        """The Earth's field for the compass check from the first position the autopilot reports."""
+        pos = dec.position(msg)
+        if pos is not None and self.compass.locate(*pos) and self.config.compass.enabled:
+            d = math.degrees(self.compass.declination_rad or 0.0)
+            self.note(f"compass: the autopilot's heading is checked against its magnetometer (declination {d:.2f} "
+                      f"deg at {pos[0]:.4f}, {pos[1]:.4f})")  # fmt: skip
+
+    def _compass(self, group: str, msg: Any, t: float) -> None:
+        """Hold the published attitude; give the compass check each magnetometer sample with it."""
+        if group == "attitude":
+            self._q_pub = dec.attitude(msg)
+            return
+        mag = dec.magnetometer(msg)
+        if mag is not None and self._q_pub is not None:
+            was_ready = self.compass.ready
+            self.compass.sample(t, mag, self._q_pub)
+            if self.compass.ready and not was_ready:
+                self.note(f"compass: the autopilot's heading is {math.degrees(self.compass.offset_rad):+.1f} deg off "
+                          "its magnetometer's; the attitude is corrected by the running offset")  # fmt: skip
+
     def _esc_info(self, msg: Any) -> None:
         for i, flags in enumerate(msg.failure_flags):
             if int(msg.index) + i < len(self._esc_order):
@@ -366,7 +362,9 @@ class LiveCore:
             if q is None:
                 est._reject("attitude:bad_value")
             else:
-                est.set_attitude(t, q)
+                ap = self.autopilot_yaw_sigma if self.config.compass.autopilot_sigma else None
+                est.set_heading_sigma(max(self.compass.sigma_rad, ap or 0.0))
+                est.set_attitude(t, self.compass.correct(q))
         elif group == "velocity":
             v = dec.velocity(msg)
             if v is not None:

@@ -15,6 +15,10 @@ Units on the wire (MAVLink common.xml, checked against ArduPilot's senders for R
 - ESC_STATUS: rpm (project dialect, ``index`` = first ESC of the message); ESC_TELEMETRY_1_TO_4
   (ArduPilot's, ESCs 1-4 in its motor order): rpm, no time stamp; RAW_RPM: one sensor (``index``) per
   message, frequency in rpm, no time stamp.
+- Magnetic field (the compass check, direction only): HIL_SENSOR and HIGHRES_IMU xmag..zmag in gauss,
+  SCALED_IMU and RAW_IMU in mgauss (ArduPilot fills RAW_IMU with its calibrated field); all zeros = none.
+- Position (the compass check's World Magnetic Model): GLOBAL_POSITION_INT, GPS_RAW_INT (lat/lon degE7,
+  alt mm), HOME_POSITION (latitude/longitude degE7, altitude mm).
 - ACTUATOR_OUTPUT_STATUS: actuator[32] floats in the output driver's units (PX4: PWM us,
   1000-2000 in SITL/SIH); SERVO_OUTPUT_RAW: servo1..16_raw, PWM us. See ``motor_output``.
 
@@ -43,6 +47,8 @@ PREFERENCE: dict[str, tuple[str, ...]] = {
     "velocity": ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "GPS_RAW_INT"),
     "rotors": ("ESC_STATUS", "ESC_TELEMETRY_1_TO_4", "RAW_RPM", "ACTUATOR_OUTPUT_STATUS", "SERVO_OUTPUT_RAW"),
 }
+#: Messages that carry the vehicle's geodetic position.
+POSITION_TYPES = frozenset({"GLOBAL_POSITION_INT", "GPS_RAW_INT", "HOME_POSITION"})
 #: Message type -> input group.
 GROUP_OF: dict[str, str] = {m: g for g, names in PREFERENCE.items() for m in names}
 #: Rotor-speed sources that are measured speeds (ESC telemetry).
@@ -78,6 +84,34 @@ def imu(msg: Any) -> tuple[np.ndarray, np.ndarray]:
     if msg.get_type() in ("SCALED_IMU", "RAW_IMU"):
         return acc * (G0 / 1000.0), gyr * 1e-3
     return acc, gyr
+
+
+def magnetometer(msg: Any) -> np.ndarray | None:
+    """Magnetic field FRD in gauss of an IMU message, or None when it carries none (all zeros, absent)."""
+    try:
+        m = np.array([msg.xmag, msg.ymag, msg.zmag], dtype=float)
+    except AttributeError:
+        return None
+    if not m.any():
+        return None
+    return m * 1e-3 if msg.get_type() in ("SCALED_IMU", "RAW_IMU") else m
+
+
+def yaw_sigma(msg: Any) -> float | None:
+    """The 1-sigma of the heading (rad) an ODOMETRY message states (pose_covariance's yaw-yaw entry, the 21st
+    of its upper triangle; PX4 fills it with EKF2's variance), or None when it states none (NaN first)."""
+    cov = msg.pose_covariance
+    var = float(cov[20]) if len(cov) > 20 else math.nan
+    return math.sqrt(var) if math.isfinite(float(cov[0])) and math.isfinite(var) and var > 0.0 else None
+
+
+def position(msg: Any) -> tuple[float, float, float] | None:
+    """(latitude deg, longitude deg, altitude m AMSL) of a position message, or None without a fix."""
+    if msg.get_type() == "HOME_POSITION":
+        return msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3
+    if msg.get_type() == "GPS_RAW_INT" and msg.fix_type < 3:
+        return None
+    return msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3
 
 
 def attitude(msg: Any) -> np.ndarray | None:

@@ -87,6 +87,7 @@ class EstimatorOutputs:
     _bias_cov: tuple[float, np.ndarray] | None  # (filter time, unseen_bias_cov) of the last evaluation
     _i_scale: int
     _bias_idx: np.ndarray
+    heading_sigma_rad: float
     direction: DirectionFilter
     _dir_filtered: float
 
@@ -108,7 +109,23 @@ class EstimatorOutputs:
             self.x, self.P, _NO_R if R is None else R, R is not None, cfg.model_error_rel_h, cfg.model_error_d_m_s
         )
         C[0:2, 0:2] += self.unseen_bias_cov()
+        if self.heading_sigma_rad > 0.0:
+            C[0:2, 0:2] += self.heading_cov()
         return C, v_air
+
+    def heading_cov(self) -> np.ndarray:
+        """Horizontal wind covariance (N, E; (m/s)^2) from the heading uncertainty of the attitude.
+
+        A heading error dpsi turns the air-relative velocity the filter infers from the forces, so the
+        wind is off by dpsi x J v_air (v_air the horizontal air-relative velocity NED, J the 90 deg turn):
+        sigma^2 (J v)(J v)^T, across the air-relative velocity (``estimator.compass``). Zero without an
+        attitude or while no heading sigma is set."""
+        s = self.heading_sigma_rad
+        if self._R is None or s <= 0.0:
+            return np.zeros((2, 2))
+        v = self._R[0:2, :] @ self.x[0:3] - self.x[3:5]
+        jv = np.array([-v[1], v[0]])
+        return s * s * np.outer(jv, jv)
 
     def unseen_bias_cov(self) -> np.ndarray:
         """Horizontal wind covariance (N, E; (m/s)^2) from the accelerometer bias no state carries.

@@ -150,6 +150,7 @@ class WindEstimator(EstimatorOutputs):
         self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
         self._dt_last = 0.0
         self._bias_cov: tuple[float, np.ndarray] | None = None  # EstimatorOutputs.unseen_bias_cov's cache
+        self.heading_sigma_rad = 0.0  # stated 1-sigma of the attitude's heading (estimator.compass), rad
         self.imu_rate = ImuRate(cfg.accel_noise_rate_hz)  # the accelerometer variance per sample at the stream's rate
         self.transients = 0  # times the transient detector fired
         self.last_nis = math.nan  # the last accelerometer update's normalized innovation squared
@@ -178,6 +179,11 @@ class WindEstimator(EstimatorOutputs):
         self._R = quat_to_dcm(q)
         self.accepted["attitude"] += 1
         return True
+
+    def set_heading_sigma(self, sigma_rad: float) -> None:
+        """The 1-sigma (rad) of the attitude's heading to state in the wind covariance (``heading_cov``);
+        0, the default, states none (the filter's own noise model carries an AHRS's usual error)."""
+        self.heading_sigma_rad = max(float(sigma_rad), 0.0) if math.isfinite(sigma_rad) else 0.0
 
     def set_rates(self, t: float, rates_frd: np.ndarray) -> bool:
         """Body rates (FRD, rad/s) when they come separately from the IMU (e.g. MAVLink ATTITUDE)."""

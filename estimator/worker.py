@@ -33,11 +33,30 @@ from typing import Any
 
 import numpy as np
 
-from estimator.live import LiveCore, warm_up
+from estimator.live import LiveConfig, LiveCore
 from estimator.mavlink_decode import PREFERENCE
+from estimator.ukf import WindEstimator
 
 IMU_TYPES = frozenset(PREFERENCE["imu"])
 MAX_NOTES = 100  # notes kept for the owner; older ones are dropped and counted
+
+
+def warm_up(config: LiveConfig) -> None:
+    """Run a throw-away filter over a few hovering samples, so that every numba kernel is compiled (or
+    loaded from the cache) before the first real sample. On a fresh machine that takes 15-25 s, from
+    the cache still a fraction of a second that holds the GIL: do it before an event loop starts."""
+    est = WindEstimator(config.vehicle, config.estimator)
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    est.set_attitude(0.0, q)
+    est.set_rotor_speeds(0.0, np.full(4, 393.0))
+    for i in range(1, 40):
+        t = 0.004 * i
+        est.imu(t, np.array([0.0, 0.0, -9.81]), np.zeros(3))
+        if i % 10 == 0:
+            est.set_attitude(t, q)
+            est.gnss_velocity(t, np.zeros(3))
+            est.gnss_velocity(t + 0.001, np.zeros(2))
+    est.estimate()
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,6 @@ from sitl.autopilot.controller import ControllerGains
 from sitl.autopilot.flight_modes import FlightConfig, ItemKind, MissionItem
 from sitl.parsing import ScenarioError, boolean, number, table, vec3
 from sitl.scenario_wind import parse_turbulence, parse_urban, parse_wind, parse_wind_model
-from sitl.world.geomag import earth_field_ned_gauss
 from sitl.world.plume.setup import PlumeSetup, parse_plume_table
 from sitl.world.sensors import (
     BaroConfig,
@@ -36,6 +35,7 @@ from sitl.world.sensors import (
 from sitl.world.spec import Start, WorldSpec
 from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import KaimalTurbulence, SteadyWind
+from vehicle.geomag import earth_field_ned_gauss
 
 
 @dataclass(frozen=True)
@@ -191,7 +191,7 @@ def _parse_start(tbl: Any) -> Start:
 
 def _parse_mag(mag: Any, home: Any) -> MagConfig:
     """``[sensors.mag]``; without ``field_ned_gauss`` the World Magnetic Model's field at the home (as the
-    autopilots assume it: :mod:`sitl.world.geomag`)."""
+    autopilots assume it: :mod:`vehicle.geomag`)."""
     cfg = _parse_dataclass("sensors.mag", MagConfig, mag)
     if isinstance(mag, dict) and "field_ned_gauss" in mag:
         return cfg

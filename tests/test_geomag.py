@@ -1,4 +1,4 @@
-"""The magnetometer's Earth field is the World Magnetic Model's at the scenario's home (sitl/world/geomag.py),
+"""The magnetometer's Earth field is the World Magnetic Model's at the scenario's home (vehicle/geomag.py),
 the field PX4's and ArduPilot's EKFs assume there; a field in the scenario file is kept."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import pytest
 
 from sitl.scenario import ScenarioError, parse_scenario
-from sitl.world.geomag import earth_field_ned_gauss
 from sitl.world.sensors import HomeConfig, MagConfig
+from vehicle.geomag import earth_field_ned_gauss
 
 
 def _declination_inclination(f: tuple[float, float, float]) -> tuple[float, float]:

@@ -28,15 +28,17 @@ import argparse
 import json
 import math
 import signal
+import struct
 import sys
 import time
 from typing import Any
 
 import numpy as np
 
-from estimator.live import LiveConfig, LiveCore, warm_up
+from estimator.live import LiveConfig, LiveCore
 from estimator.mavlink_adapter import wind_cov_message
 from estimator.mavlink_decode import PREFERENCE
+from estimator.worker import warm_up
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
 from wire.urls import pymavlink_url  # in wire/: the mission's signing bridge uses it too
@@ -116,6 +118,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--signing-key", metavar="FILE", default=None,
                    help="MAVLink 2 signing: FILE holds the 32-byte key as 64 hex characters (default: "
                    "$WINDSEEK_SIGNING_KEY if set); sign what we send, drop unsigned or wrongly signed frames")
+    p.add_argument("--compass", action=argparse.BooleanOptionalAction, default=True,
+                   help="check the autopilot's heading against its magnetometer and correct the attitude by the "
+                   "offset (estimator/compass.py; default on)")
+    p.add_argument("--compass-sigma-deg", type=float, default=1.0, metavar="DEG",
+                   help="stated 1-sigma of the compass heading (calibration, declination, interference)")
+    p.add_argument("--tlog", default=None, metavar="PATH",
+                   help="write every message received to this telemetry log (replay: benchmarks/compass_replay.py)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     p.add_argument("--progress-every", type=float, default=None, metavar="S",
                    help="wall seconds between progress lines on stderr (default: a live line on a terminal, "
@@ -125,6 +134,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def make_core(args: argparse.Namespace) -> LiveCore:
     """The live core the command line describes (errors are one-line ValueErrors)."""
+    from estimator.compass import CompassConfig
     from estimator.motor_output import MOTOR_ORDERS, OutputMap
     from vehicle.vehicle_file import load_vehicle
 
@@ -134,7 +144,8 @@ def make_core(args: argparse.Namespace) -> LiveCore:
     outputs = OutputMap.for_vehicle(vehicle, args.esc_order, args.thr_mdl_fac, tuple(args.output_range))
     cfg = LiveConfig(vehicle=vehicle, imu_average=args.imu_average, ground_gate=args.ground_gate,
                      target_system=args.target_system, esc_order=MOTOR_ORDERS[args.esc_order], outputs=outputs,
-                     airframe=args.airframe, esc_component=args.esc_component)  # fmt: skip
+                     airframe=args.airframe, esc_component=args.esc_component,
+                     compass=CompassConfig(enabled=args.compass, sigma_deg=args.compass_sigma_deg))  # fmt: skip
     return LiveCore(cfg)
 
 
@@ -214,6 +225,12 @@ def request_rates(conn: Any, core: LiveCore, mode: str, say: Any) -> None:
         conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                    float(msg_id), 1e6 / STATE_HZ, 0, 0, 0, 0, 0)  # fmt: skip
         say(f"requested EXTENDED_SYS_STATE (message {msg_id}) at {STATE_HZ:g} Hz for the landed state")
+    # The autopilot's own heading uncertainty (PX4: EKF2's yaw variance in ODOMETRY) for the stated covariance.
+    if core.config.compass.autopilot_sigma and (mode == "always" or core.autopilot_yaw_sigma is None):
+        msg_id = mavlink.MAVLINK_MSG_ID_ODOMETRY
+        conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                   float(msg_id), 1e6 / STATE_HZ, 0, 0, 0, 0, 0)  # fmt: skip
+        say(f"requested ODOMETRY (message {msg_id}) at {STATE_HZ:g} Hz for the autopilot's heading uncertainty")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -251,17 +268,20 @@ def run(args: argparse.Namespace) -> int:
         if key is not None:
             signing.configure_connection(conn, key)
             say("MAVLink 2 signing on: unsigned or wrongly signed frames are dropped")
+        tlog = open(args.tlog, "wb") if args.tlog else None  # noqa: SIM115 - closed below
         try:
-            return _loop(conn, core, args, say, every, interactive, stop)
+            return _loop(conn, core, args, say, every, interactive, stop, tlog)
         finally:
             conn.close()
+            if tlog is not None:
+                tlog.close()
     finally:
         for s, h in old.items():
             signal.signal(s, h)
 
 
 def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: float, interactive: bool,
-          stop: list[str]) -> int:  # fmt: skip
+          stop: list[str], tlog: Any = None) -> int:  # fmt: skip
     say(f"connecting on {args.connect}")
     pub = Publisher(core, args.rate)
     wall0 = last_rx = last_hb = last_line = time.monotonic()
@@ -298,6 +318,8 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
         if msg.get_srcSystem() == conn.mav.srcSystem and msg.get_srcComponent() == ESTIMATOR_COMPONENT:
             continue  # our own frames, echoed by a forwarder
         last_rx = time.monotonic()
+        if tlog is not None:
+            _log_frame(tlog, msg)
         had_target = core.target is not None
         core.handle(msg)
         for note in core.take_notes():
@@ -326,6 +348,14 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
         if core.model_note:
             say(core.model_note)
     return 130 if stop and core.target is None else 0
+
+
+def _log_frame(tlog: Any, msg: Any) -> None:
+    """One message in the telemetry log format (8-byte big-endian UNIX time in us, then the frame); frames
+    pymavlink could not parse whole (BAD_DATA, a message id the dialect does not know) are left out."""
+    buf = bytes(msg.get_msgbuf())
+    if buf[:1] in (b"\xfd", b"\xfe") and msg.get_type() != "BAD_DATA" and not msg.get_type().startswith("UNKNOWN"):
+        tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + buf)
 
 
 def _authentic(conn: Any, msg: Any) -> bool:

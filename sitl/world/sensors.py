@@ -68,7 +68,7 @@ class MagConfig:
     rate_hz: float = 50.0
     noise_gauss: float = 0.004
     #: Earth field in NED, gauss: a scenario without one gets the World Magnetic Model's at its home
-    #: (:mod:`sitl.world.geomag`, as the autopilots assume it); this default is that at the default home.
+    #: (:mod:`vehicle.geomag`, as the autopilots assume it); this default is that at the default home.
     field_ned_gauss: tuple[float, float, float] = (0.215199, 0.012868, 0.432424)
 
 

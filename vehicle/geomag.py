@@ -23,7 +23,7 @@ WMM_EPOCH = 2025.0
 @lru_cache(maxsize=64)
 def earth_field_ned_gauss(lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tuple[float, float, float]:
     """The main field (north, east, down) in gauss at a geodetic point, WMM2025 at :data:`WMM_EPOCH`."""
-    from pygeomag import GeoMag  # imported here: only scenario parsing needs it
+    from pygeomag import GeoMag  # imported here: only scenario parsing and the compass check need it
 
     r = GeoMag().calculate(glat=float(lat_deg), glon=float(lon_deg), alt=float(alt_m) / 1000.0, time=WMM_EPOCH)
     return (round(r.x * 1e-5, 6), round(r.y * 1e-5, 6), round(r.z * 1e-5, 6))
