@@ -1,0 +1,51 @@
+"""Lossless PNG images for the recording: a one-colour image with per-pixel opacity as an indexed PNG.
+
+A strategy's posterior is drawn in one colour whose opacity varies (:func:`recording.style.posterior_alpha`):
+sent as raw RGBA it cost ~9 kB a posterior on disk after rerun's LZ4 (4 bytes a pixel, mostly
+transparent), the largest part of an infotaxis trial's recording. The same pixels as an indexed
+PNG (colour type 3: a palette of 256 entries, entry ``i`` the colour with opacity ``i``, its ``tRNS``
+chunk the opacities; one byte a pixel, deflated) are ~4 kB; the viewer decodes a PNG to the same RGBA
+(``rr.EncodedImage``). :func:`decode_png` reads any PNG back as RGBA (tests, :mod:`recording.read`).
+"""
+
+from __future__ import annotations
+
+import io
+import struct
+import zlib
+
+import numpy as np
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: zlib's level: 6 (its default) gives 14 % less than 1 for ~0.3 ms more on a ~170 x 130 posterior.
+DEFLATE_LEVEL = 6
+
+
+def _chunk(tag: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+
+def alpha_png(alpha: np.ndarray, rgb: tuple[int, int, int], level: int = DEFLATE_LEVEL) -> bytes:
+    """An indexed PNG of an image of colour ``rgb`` everywhere with opacity ``alpha[row, col]``
+    (uint8, H x W): decoded, pixel (row, col) is ``(*rgb, alpha[row, col])``, losslessly."""
+    a = np.ascontiguousarray(alpha, dtype=np.uint8)
+    if a.ndim != 2 or not a.size:
+        raise ValueError(f"alpha_png: expected a non-empty 2D opacity grid, got shape {a.shape}")
+    h, w = a.shape
+    rows = np.zeros((h, w + 1), dtype=np.uint8)  # each row: filter type 0 (none), then its pixels
+    rows[:, 1:] = a
+    palette = np.tile(np.asarray(rgb, dtype=np.uint8), 256)
+    return b"".join((PNG_SIGNATURE, _chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 3, 0, 0, 0)),
+                     _chunk(b"PLTE", palette.tobytes()), _chunk(b"tRNS", bytes(range(256))),
+                     _chunk(b"IDAT", zlib.compress(rows.tobytes(), level)), _chunk(b"IEND", b"")))  # fmt: skip
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """A PNG's pixels as RGBA (H x W x 4, uint8) (Pillow, which matplotlib already needs)."""
+    from PIL import Image
+
+    with Image.open(io.BytesIO(data)) as im:
+        return np.asarray(im.convert("RGBA"))
+
+
+__all__ = ["DEFLATE_LEVEL", "PNG_SIGNATURE", "alpha_png", "decode_png"]
