@@ -362,14 +362,13 @@ class SceneMixin(RecorderBase):
             raise ValueError(f"posterior: extent {tuple(extent_ne)} must be (north_min, north_max, east_min, east_max)")
         p, (n0, n1, e0, e1) = _visible_part(p, (n0, n1, e0, e1))
         self._time(t)
-        self.rec.log("map/posterior/image", rr.Transform3D(translation=[e0, -n1, 0.0],
-                                                           scale=[(e1 - e0) / p.shape[1], (n1 - n0) / p.shape[0], 1.0]))
+        place = rr.Transform3D(translation=[e0, -n1, 0.0], scale=[(e1 - e0) / p.shape[1], (n1 - n0) / p.shape[0], 1.0])
         if self.posterior_png:  # the same pixels in less than half the bytes (recording.png)
             img: rr.AsComponents = rr.EncodedImage(contents=alpha_png(posterior_alpha(p), C_POSTERIOR),
                                                    media_type="image/png", opacity=0.99, draw_order=-5.0)  # fmt: skip
         else:
             img = rr.Image(posterior_image(p), opacity=0.99, draw_order=-5.0)
-        self.rec.log("map/posterior/image", img)
+        self.rec.log("map/posterior/image", place, img)  # one row: one chunk in the file, not two
         if credible is not None and math.isfinite(credible[1]) and credible[1] > 0:
             c, r = credible
             self.rec.log("map/posterior/credible", rr.LineStrips2D([circle(c, r)], colors=[C_POSTERIOR], radii=ui(1.5),
