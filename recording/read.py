@@ -18,6 +18,7 @@ typical run) and queried by entity path. Paths may be given with or without the 
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,9 @@ class RrdLog:
 
     def __init__(self, path: Path | str) -> None:
         self.path = Path(path)
-        reader = RrdReader(self.path)
+        with warnings.catch_warnings():  # a batch trial's file has no footer: read whole, as here anyway
+            warnings.filterwarnings("ignore", message="RRD file has no footer")
+            reader = RrdReader(self.path)
         self.application_ids = [s.application_id for s in reader.recordings()]
         self.blueprint_count = len(reader.blueprints())
         self._blueprint_paths: list[str] | None = None
