@@ -3,7 +3,7 @@
 Flies open-field trials (``run_trial(..., recorder=TrialRecorder(path))``) for each strategy and seed and
 prints each file's size split as :mod:`benchmarks.rrd_bytes` splits it (recording temporal / static,
 blueprint, footer). ``--legacy`` records each trial a second time the way trials were recorded before
-2026-12-06 (the posterior as raw RGBA, the footer written: ``TrialRecorder(posterior_png=False,
+2026-12-06 (the posterior as raw RGBA, the footer written: ``TrialRecorder(png_images=False,
 footer=True)``) and prints the ratio. Run on an older checkout (without ``--legacy``) for its figures.
 
     python benchmarks/recording_size.py                                   # surge-cast and infotaxis, 3 seeds
@@ -60,7 +60,7 @@ def main() -> None:
                 if a.legacy:
                     old = Path(d) / f"{strategy}-{seed}-legacy.rrd"
                     run_trial("open-field", strategy, seed=seed, time_limit_s=a.time_limit,
-                              recorder=TrialRecorder(old, posterior_png=False, footer=True))  # fmt: skip
+                              recorder=TrialRecorder(old, png_images=False, footer=True))  # fmt: skip
                     q = parts(old)
                     ratios.append(p["total"] / q["total"])
                     line += f"; legacy {q['total']:9,d} B (footer {q['footer']:,}): x{ratios[-1]:.3f}"

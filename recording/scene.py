@@ -36,7 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 import rerun as rr
 
-from recording.png import alpha_png
+from recording.png import posterior_archetype
 from recording.stream import RecorderBase
 from recording.style import (
     C_DECLARED,
@@ -53,8 +53,6 @@ from recording.style import (
     VecLike,
     conc_image,
     log_colormap,
-    posterior_alpha,
-    posterior_image,
     state_color,
 )
 from recording.summary import FOUND_RADIUS_M
@@ -96,8 +94,9 @@ class SceneMixin(RecorderBase):
     c_range_mg_m3: tuple[float, float]
     arrow_scale_s: float
     trail_min_step_m: float
-    #: A posterior as an indexed PNG (``rr.EncodedImage``), else raw RGBA (``rr.Image``): the same pixels.
-    posterior_png: bool = True
+    #: A posterior and the urban layers' static images as PNGs (``rr.EncodedImage``), else raw RGBA
+    #: (``rr.Image``): the same pixels (:mod:`recording.png`).
+    png_images: bool = True
 
     def _init_scene(self) -> None:
         # The last path point and its state; the extent of the whole path (the map's bounds).
@@ -363,12 +362,8 @@ class SceneMixin(RecorderBase):
         p, (n0, n1, e0, e1) = _visible_part(p, (n0, n1, e0, e1))
         self._time(t)
         place = rr.Transform3D(translation=[e0, -n1, 0.0], scale=[(e1 - e0) / p.shape[1], (n1 - n0) / p.shape[0], 1.0])
-        if self.posterior_png:  # the same pixels in less than half the bytes (recording.png)
-            img: rr.AsComponents = rr.EncodedImage(contents=alpha_png(posterior_alpha(p), C_POSTERIOR),
-                                                   media_type="image/png", opacity=0.99, draw_order=-5.0)  # fmt: skip
-        else:
-            img = rr.Image(posterior_image(p), opacity=0.99, draw_order=-5.0)
-        self.rec.log("map/posterior/image", place, img)  # one row: one chunk in the file, not two
+        # One row (one chunk in the file, not two); a PNG: the same pixels in less than half the bytes.
+        self.rec.log("map/posterior/image", place, posterior_archetype(p, self.png_images))
         if credible is not None and math.isfinite(credible[1]) and credible[1] > 0:
             c, r = credible
             self.rec.log("map/posterior/credible", rr.LineStrips2D([circle(c, r)], colors=[C_POSTERIOR], radii=ui(1.5),

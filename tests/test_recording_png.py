@@ -23,3 +23,14 @@ def test_alpha_png_decodes_to_the_same_rgba(shape: tuple[int, int]) -> None:
 def test_alpha_png_rejects_an_empty_grid() -> None:
     with pytest.raises(ValueError, match="2D"):
         alpha_png(np.zeros((0, 3), dtype=np.uint8), C_POSTERIOR)
+
+
+def test_rgba_png_decodes_to_the_same_rgba() -> None:
+    from recording.png import rgba_png
+
+    rng = np.random.default_rng(3)
+    rgba = rng.integers(0, 256, size=(13, 9, 4), dtype=np.uint8)
+    rgba[2:6, 3:7] = (150, 140, 125, 110)  # a block of one colour, as the buildings' footprints
+    np.testing.assert_array_equal(decode_png(rgba_png(rgba)), rgba)
+    with pytest.raises(ValueError, match="H x W x 4"):
+        rgba_png(rgba[..., :3])
