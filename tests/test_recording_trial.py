@@ -8,6 +8,7 @@ the trial. The posterior layer is checked with a synthetic Gaussian grid whose c
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -145,7 +146,10 @@ def _content(path: Path) -> tuple[dict[str, dict[str, object]], dict[str, list[t
 
     static: dict[str, dict[str, object]] = {}
     rows: dict[str, list[tuple[float, str]]] = {}
-    for chunk in RrdReader(path).stream().to_chunks():
+    with warnings.catch_warnings():  # a batch trial's file has no footer (recording.stream.RecorderBase)
+        warnings.filterwarnings("ignore", message="RRD file has no footer")
+        chunks = RrdReader(path).stream().to_chunks()
+    for chunk in chunks:
         rb = chunk.to_record_batch()
         names = [n for n in rb.schema.names if n != "rerun.controls.RowId" and n != TIMELINE]
         if chunk.is_static:
