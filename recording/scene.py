@@ -12,7 +12,7 @@ Entity paths::
     map/plume                          concentration at flight altitude (an image)
     world/plume/curtain                concentration on the vertical plane along the wind through the source
     world/plume/puffs                  puff centres (small dots; off unless a caller logs them)
-    map/posterior/{image,credible}     a strategy's source posterior and its credible circle
+    map/posterior/{image,credible}     a strategy's source posterior (an indexed PNG) and its credible circle
     map/setpoint, world/setpoint       the position setpoint the mission sent (the mission's recording)
     map/path, world/trail              the path, one segment per row (on the map coloured by strategy
                                        state); the views show every row up to the time cursor
