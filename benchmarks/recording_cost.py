@@ -53,26 +53,28 @@ def own_share(path: Path, extra_cpu_s: float = 0.0) -> tuple[float, float, float
     return own + extra_cpu_s, cost["process_cpu_s"] - own, cost["sim_s"]
 
 
-def trial_cost(seeds: list[int], repeats: int, out: Path) -> dict:
-    """Paired trials with and without the recorder; the recorder's own share of the recorded ones."""
-    run_trial("open-field", "surge-cast", seed=seeds[0], time_limit_s=5.0)  # numba kernels compiled, caches warm
+def trial_cost(seeds: list[int], repeats: int, out: Path, strategy: str = "surge-cast") -> dict:
+    """Paired trials with and without the recorder; the recorder's own share of the recorded ones and
+    the recordings' sizes."""
+    run_trial("open-field", strategy, seed=seeds[0], time_limit_s=5.0)  # numba kernels compiled, caches warm
     # and a recorded one: rerun's and the recorder's one-time imports and set-up are not a trial's cost
-    run_trial("open-field", "surge-cast", seed=seeds[0], time_limit_s=5.0, recorder=TrialRecorder(out / "warm.rrd"))
+    run_trial("open-field", strategy, seed=seeds[0], time_limit_s=5.0, recorder=TrialRecorder(out / "warm.rrd"))
     runs: dict[bool, list[float]] = {False: [], True: []}
-    ratios, own, rest = [], 0.0, 0.0
+    ratios, own, rest, sizes = [], 0.0, 0.0, []
     for r in range(repeats):
         for seed in seeds:
             pair = {}
             for rec in ((False, True) if r % 2 == 0 else (True, False)):
                 path = out / f"trial-{seed}.rrd"
                 c0 = time.process_time()
-                res = run_trial("open-field", "surge-cast", seed=seed, recorder=TrialRecorder(path) if rec else None)
+                res = run_trial("open-field", strategy, seed=seed, recorder=TrialRecorder(path) if rec else None)
                 cpu = time.process_time() - c0
                 runs[rec].append(cpu)
                 pair[rec] = (cpu, res)
                 if rec:
                     o, rst, _ = own_share(path)
                     own, rest = own + o, rest + rst
+                    sizes.append(path.stat().st_size)
             if any(getattr(pair[True][1], k) != getattr(pair[False][1], k) for k in KEYS):
                 raise SystemExit(f"seed {seed}: the recorder changed the trial's result")
             ratios.append(pair[True][0] / pair[False][0])
@@ -80,7 +82,8 @@ def trial_cost(seeds: list[int], repeats: int, out: Path) -> dict:
                   f"(x{ratios[-1]:.3f}), {pair[True][1].time_s:.1f} s of flight", flush=True)  # fmt: skip
     return {"own_ratio": 1.0 + own / rest, "own_s": own, "cpu_ratio": sum(runs[True]) / sum(runs[False]),
             "pair_ratio_min": min(ratios), "pair_ratio_max": max(ratios),
-            "pair_ratio_median": statistics.median(ratios), "trials": len(ratios)}  # fmt: skip
+            "pair_ratio_median": statistics.median(ratios), "trials": len(ratios),
+            "bytes_min": min(sizes), "bytes_max": max(sizes)}  # fmt: skip
 
 
 def demo_cost(runs: int, seed: int, speed: float, out: Path) -> dict:
@@ -112,6 +115,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1000,1001", help="evaluation seeds of the in-process trials")
     ap.add_argument("--repeats", type=int, default=2, help="repeats of each in-process pair")
+    ap.add_argument("--strategy", default="surge-cast", help="strategy of the in-process trials (open-field)")
     ap.add_argument("--demo-runs", type=int, default=3, help="recorded demo runs")
     ap.add_argument("--demo-seed", type=int, default=1000)
     ap.add_argument("--speed", type=float, default=5.0, help="demo speed factor")
@@ -123,12 +127,12 @@ def main() -> None:
         out = Path(d)
         print(f"load average {load:.1f} on {os.cpu_count()} cores", flush=True)
         if not a.skip_trials:
-            print("in-process runner:", flush=True)
-            t = trial_cost([int(s) for s in a.seeds.split(",")], a.repeats, out)
+            print(f"in-process runner ({a.strategy}):", flush=True)
+            t = trial_cost([int(s) for s in a.seeds.split(",")], a.repeats, out, a.strategy)
             print(f"in-process: the recorder's own CPU (its calls + rerun's threads) x{t['own_ratio']:.3f} of the rest "
                   f"of the trials ({t['own_s']:.2f} s); paired trials x{t['cpu_ratio']:.3f} CPU (median pair "
                   f"x{t['pair_ratio_median']:.3f}, pairs x{t['pair_ratio_min']:.3f} .. x{t['pair_ratio_max']:.3f}, "
-                  f"{t['trials']} pairs)")  # fmt: skip
+                  f"{t['trials']} pairs); recordings {t['bytes_min'] / 1e3:.0f}-{t['bytes_max'] / 1e3:.0f} kB")
         if not a.skip_demo:
             print("windseek demo:", flush=True)
             dm = demo_cost(a.demo_runs, a.demo_seed, a.speed, out)

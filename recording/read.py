@@ -10,6 +10,7 @@ typical run) and queried by entity path. Paths may be given with or without the 
     t, v = log.scalars("rotors/1")         # t [s] (N,), v (N,) sorted by vehicle time
     t, lo, hi = log.band("wind/north/band")  # the +-2 sigma band's edges
     t, p = log.vectors("world/vehicle", "Transform3D:translation")   # (N,), (N, 3)
+    t, imgs = log.images("map/posterior/image")   # H x W x 4 uint8 each, raw or PNG
     log.summary()                          # the RunSummary the recording carries
     log.states("phases/mission")           # [(t, "take-off"), (t, "search"), ...]
     log.layout()                           # the Layout facts (plot ranges, map extent, ...)
@@ -17,6 +18,7 @@ typical run) and queried by entity path. Paths may be given with or without the 
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,7 @@ import numpy as np
 from rerun.chunk import Chunk, RrdReader
 
 from recording.layout import Layout
+from recording.png import decode_png
 from recording.style import TIMELINE
 from recording.summary import RunSummary
 
@@ -39,7 +42,9 @@ class RrdLog:
 
     def __init__(self, path: Path | str) -> None:
         self.path = Path(path)
-        reader = RrdReader(self.path)
+        with warnings.catch_warnings():  # a batch trial's file has no footer: read whole, as here anyway
+            warnings.filterwarnings("ignore", message="RRD file has no footer")
+            reader = RrdReader(self.path)
         self.application_ids = [s.application_id for s in reader.recordings()]
         self.blueprint_count = len(reader.blueprints())
         self._blueprint_paths: list[str] | None = None
@@ -179,6 +184,24 @@ class RrdLog:
         n = len(t) // 2
         a, b = v[0 : 2 * n : 2], v[1 : 2 * n : 2]
         return t[0 : 2 * n : 2], np.minimum(a, b), np.maximum(a, b)
+
+    def images(self, entity: str, timeline: str = TIMELINE) -> tuple[np.ndarray, list[np.ndarray]]:
+        """An image entity's pixels: t [s] (N,) and per row an H x W x C uint8 array, whether it was sent
+        raw (``rr.Image``, 8-bit channels) or encoded (``rr.EncodedImage``, a PNG: decoded to RGBA)."""
+        t_raw, bufs = self.column(entity, "Image:buffer", timeline)
+        _, fmts = self.column(entity, "Image:format", timeline)
+        out: list[tuple[float, np.ndarray]] = []
+        for ti, buf, fmt in zip(t_raw, bufs, fmts, strict=True):
+            f = fmt[0] if isinstance(fmt, list) else fmt
+            px = np.frombuffer(bytes(buf[0] if isinstance(buf, list) and buf and isinstance(buf[0], list) else buf),
+                               dtype=np.uint8)  # fmt: skip
+            out.append((float(ti), px.reshape(f["height"], f["width"], -1)))
+        t_enc, blobs = self.column(entity, "EncodedImage:blob", timeline)
+        for ti, blob in zip(t_enc, blobs, strict=True):
+            data = bytes(blob[0] if isinstance(blob, list) and blob and isinstance(blob[0], list) else blob)
+            out.append((float(ti), decode_png(data)))
+        out.sort(key=lambda r: r[0])
+        return np.array([ti for ti, _ in out]), [im for _, im in out]
 
     def vectors(self, entity: str, component: str, timeline: str = TIMELINE) -> tuple[np.ndarray, np.ndarray]:
         """A per-row 3-vector component (e.g. ``"Transform3D:translation"``): t (N,), (N, 3).

@@ -100,6 +100,9 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         estimate_label, autopilot_label: what the legends call windseek's estimate (``estimate N``) and
             the autopilot's own (``autopilot N``; with PX4 flying ``PX4 EKF2 N``, with ArduCopter
             ``ArduCopter EKF3 N``).
+        footer: end the file with rerun's chunk manifest (``RecorderBase``: a batch trial leaves it out).
+        png_images: send a posterior and the urban layers' static images as PNGs (the same pixels, less
+            than half the bytes, :mod:`recording.png`), else as raw RGBA (``rr.Image``, as before 2026-12-06).
 
     Use as a context manager, or call :meth:`close` at the end.
     """
@@ -110,12 +113,14 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
                  series_flush_s: float = 4.0, trail_min_step_m: float = 0.5,
                  c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
                  arrow_scale_s: float = 2.0, recording_id: str | None = None, estimate_label: str = "estimate",
-                 autopilot_label: str = "autopilot") -> None:  # fmt: skip
+                 autopilot_label: str = "autopilot", png_images: bool = True,
+                 footer: bool = True) -> None:  # fmt: skip
         super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id,
-                         defer_static=not live_layout)  # fmt: skip
+                         defer_static=not live_layout, footer=footer)  # fmt: skip
         self.trail_min_step_m = float(trail_min_step_m)
         self.c_range_mg_m3 = (float(c_range_mg_m3[0]), float(c_range_mg_m3[1]))
         self.arrow_scale_s = float(arrow_scale_s)
+        self.png_images = bool(png_images)
         self.blueprint = blueprint
         self.scenario, self.strategy, self.seed = scenario, strategy, seed
         self.estimate_label, self.autopilot_label = estimate_label, autopilot_label

@@ -145,12 +145,18 @@ class RecorderBase:
             anyway), and no series style for a series that never got a row. For a recording nobody
             watches live (a batch trial): every chunk costs the file ~3 kB of schema and index,
             whatever it holds.
+        footer: end the file with rerun's footer, a manifest of every chunk (byte offsets, per-column
+            time ranges) and the Arrow schema of every column, for random access without reading the
+            whole file (a catalog, ``rerun.chunk.LazyStore``). It is a quarter of a trial's file (~260 kB,
+            the schemas uncompressed) and the viewer reads a local file whole anyway: a batch trial
+            leaves it out (``save(write_footer=False)``; rerun warns once per file, and ``rerun rrd
+            optimize`` adds it back). The chunks are the same either way.
 
     Not thread-safe: one stream with its own current time; use it from one thread or one asyncio loop.
     """
 
     def __init__(self, path: Path | str, application_id: str = "windseek", *, series_flush_s: float = 0.5,
-                 recording_id: str | None = None, defer_static: bool = False) -> None:  # fmt: skip
+                 recording_id: str | None = None, defer_static: bool = False, footer: bool = True) -> None:  # fmt: skip
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.series_flush_s = float(series_flush_s)
@@ -164,7 +170,7 @@ class RecorderBase:
                                       batcher_config=batcher)  # fmt: skip
         # Wall-clock "log_time" means nothing for a lockstep simulation and costs per call.
         self.rec.set_log_time_enabled(False)
-        self.rec.save(self.path)
+        self.rec.save(self.path, write_footer=footer)
         self._rerun_tids = _task_ids() - before  # rerun's own threads (encoding, writing)
         self.closed = False
         self.t_first = math.inf
@@ -264,7 +270,9 @@ class RecorderBase:
             buf.fields.setdefault(name, []).append(value)
 
     def _maybe_flush(self, t: float) -> None:
-        if t - self._t_flush >= self.series_flush_s:
+        # Never with an infinite period (a batch trial sends its rows at close: inf - -inf >= inf sent
+        # the first rows alone, one more chunk of ~1.2 kB for each entity with a row at the start).
+        if t - self._t_flush >= self.series_flush_s and math.isfinite(self.series_flush_s):
             self.flush_series()
             self._t_flush = t
 

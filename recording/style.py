@@ -152,15 +152,23 @@ def conc_image(conc_ne: np.ndarray, c_min: float, c_max: float, alpha_max: int =
     return rgba
 
 
-def posterior_image(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
-    """A north-up RGBA image of a probability grid ``p_ne[i, j]`` (i north, j east): purple, opacity
-    proportional to the probability relative to the grid's maximum (an empty grid is transparent)."""
+def posterior_alpha(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
+    """The opacity (uint8, H x W, row 0 the northmost) with which :func:`posterior_image` draws a
+    probability grid ``p_ne[i, j]`` (i north, j east): proportional to the square root of the
+    probability relative to the grid's maximum (an empty grid is transparent)."""
     p = np.asarray(p_ne, dtype=float)[::-1, :]
     top = float(np.max(p)) if p.size else 0.0
     s = np.clip(p / top, 0.0, 1.0) if top > 0.0 and math.isfinite(top) else np.zeros_like(p)
-    rgba = np.empty((*p.shape, 4), dtype=np.uint8)
+    return np.round(alpha_max * np.sqrt(s)).astype(np.uint8)  # sqrt: the tails stay visible
+
+
+def posterior_image(p_ne: np.ndarray, alpha_max: int = 190) -> np.ndarray:
+    """A north-up RGBA image of a probability grid ``p_ne[i, j]`` (i north, j east): purple, opacity
+    :func:`posterior_alpha` (the recording sends it as an indexed PNG, :func:`recording.png.alpha_png`)."""
+    a = posterior_alpha(p_ne, alpha_max)
+    rgba = np.empty((*a.shape, 4), dtype=np.uint8)
     rgba[..., :3] = C_POSTERIOR
-    rgba[..., 3] = np.round(alpha_max * np.sqrt(s)).astype(np.uint8)  # sqrt: the tails stay visible
+    rgba[..., 3] = a
     return rgba
 
 
@@ -169,6 +177,6 @@ __all__ = [
     "C_EST", "C_FENCE", "C_FIELD_ARROW", "C_FURNITURE", "C_GPS", "C_MAP_EST", "C_MAP_TRUTH", "C_MARK_DECLARED",
     "C_MARK_PHASE", "C_MARK_VERIFY", "C_POSTERIOR", "C_RAW", "C_ROTORS", "C_SOURCE", "C_THRESH", "C_TRAIL_3D",
     "C_TRUTH", "C_VEHICLE", "PHASES", "PHASE_COLORS", "SCENE_BACKGROUND", "STATE_COLORS", "STATE_TEXT", "TEXT_LEVELS",
-    "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_image", "speed_colormap",
-    "state_color",
+    "TIMELINE", "VecLike", "conc_image", "log_colormap", "log_scale", "posterior_alpha", "posterior_image",
+    "speed_colormap", "state_color",
 ]  # fmt: skip

@@ -75,8 +75,9 @@ class TrialRecorder:
         # A trial runs many times faster than real time and nobody watches it live: the buffered
         # rows, the static data and the layout are sent once, at the end (a send costs ~0.1 ms per
         # entity whatever its rows, and every chunk ~3 kB of the file; a 600 s trial's rows are
-        # ~1 MB of memory).
-        self.recorder_kw = {"series_flush_s": math.inf, "live_layout": False, **recorder_kw}
+        # ~1 MB of memory); and the file has no footer (rerun's chunk manifest for random access, a
+        # quarter of the file: recording.stream.RecorderBase).
+        self.recorder_kw = {"series_flush_s": math.inf, "live_layout": False, "footer": False, **recorder_kw}
         self.rec: RunRecorder | None = None
         self._t_post = -math.inf
         self._src: dict[str, float] = {}

@@ -31,6 +31,7 @@ from collections.abc import Sequence
 import numpy as np
 import rerun as rr
 
+from recording.png import image_archetype
 from recording.scene import Bounds, SceneMixin, to_map, ui
 from recording.style import (
     C_BUILDING,
@@ -156,7 +157,7 @@ class UrbanSceneMixin(SceneMixin):
         rgba[mask] = C_BUILDING_MAP
         # Children of the image's entity would get its pixel scale: the outlines are siblings.
         self.log_static("map/buildings/fill", rr.Transform3D(translation=[lo[1], -hi[0], 0.0], scale=[px, px, 1.0]))
-        self.log_static("map/buildings/fill", rr.Image(rgba, opacity=0.99, draw_order=-8.0))
+        self.log_static("map/buildings/fill", image_archetype(rgba, self.png_images, opacity=0.99, draw_order=-8.0))
         rings = [to_map(np.vstack([f, f[:1]])) for f in fps]
         self.log_static("map/buildings/outline", rr.LineStrips2D(rings, colors=[C_BUILDING_EDGE], radii=ui(1.0),
                                                                  draw_order=-7.0))  # fmt: skip
@@ -184,7 +185,7 @@ class UrbanSceneMixin(SceneMixin):
         img[ok, 3] = WIND_MAP_ALPHA
         corner = [ys[0] - 0.5 * dy, -(xs[-1] + 0.5 * dx), 0.0]  # the image's pixel (0, 0): the north-west cell
         self.log_static("map/wind_field/speed", rr.Transform3D(translation=corner, scale=[dy, dx, 1.0]))
-        self.log_static("map/wind_field/speed", rr.Image(img[::-1], opacity=0.99, draw_order=-20.0))
+        self.log_static("map/wind_field/speed", image_archetype(img[::-1], self.png_images, 0.99, -20.0))
         sub = (slice(arrow_every // 2, None, arrow_every),) * 2
         n, e = np.meshgrid(xs, ys, indexing="ij")
         keep = ok[sub] & (speed[sub] > 0.02 * v_max)

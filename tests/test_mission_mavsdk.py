@@ -299,17 +299,15 @@ def _check_posterior_rrd(sitl_rrd: Path, mission_rrd: Path, src: np.ndarray, dec
     log = RrdLog(sitl_rrd)
     paths = set(log.entity_paths())
     assert {"map/posterior/image", "map/posterior/credible", "map/setpoint", "world/vehicle", "summary"} <= paths
-    t_img, fmt = log.column("map/posterior/image", "Image:format")
+    t_img, imgs = log.images("map/posterior/image")
     inside = (t_img >= s.t_arm_s) & (t_img <= s.t_disarm_s)
     assert inside.sum() >= 5 and inside.all(), (t_img, s.t_arm_s, s.t_disarm_s)
     t_veh, _ = log.vectors("world/vehicle", "Transform3D:translation")  # the SITL's truth, its clock
     assert t_veh[0] < t_img[0] and t_img[-1] < t_veh[-1]
     _, tr = log.vectors("map/posterior/image", "Transform3D:translation")
     _, sc = log.vectors("map/posterior/image", "Transform3D:scale")
-    _, buf = log.column("map/posterior/image", "Image:buffer")
-    h, w = fmt[-1][0]["height"], fmt[-1][0]["width"]
-    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(h, w, 4)
-    row, col = np.unravel_index(np.argmax(img[..., 3]), (h, w))
+    img = imgs[-1]
+    row, col = np.unravel_index(np.argmax(img[..., 3]), img.shape[:2])
     east, north = tr[-1][0] + (col + 0.5) * sc[-1][0], -(tr[-1][1] + (row + 0.5) * sc[-1][1])
     assert np.hypot(north - src[0], east - src[1]) <= 4.0, ((north, east), src)
     t_c, strips = log.column("map/posterior/credible", "LineStrips2D:strips")

@@ -76,7 +76,7 @@ def test_the_mission_recording_holds_the_posterior_setpoints_and_states(tmp_path
     v, ticks, rec = _fly(tmp_path / "mission.rrd")
     assert len(ticks) == 101 and len(v.sent) == 101 and len(v.published) == 6  # the taps pass everything on
     log = RrdLog(tmp_path / "mission.rrd")
-    t_img, _ = log.column("map/posterior/image", "Image:format")
+    t_img, _ = log.images("map/posterior/image")
     np.testing.assert_allclose(t_img, np.arange(20.0, 30.5, 1.0), atol=1e-6)  # 1 Hz of vehicle time
     assert rec.posteriors == 11 and rec.posterior_cpu_s > 0.0
     t_sp, sp = log.vectors("world/setpoint", "Points3D:positions")
@@ -106,12 +106,11 @@ def test_the_merge_adds_only_what_the_mission_alone_knows(tmp_path: Path) -> Non
     assert {"map/posterior/image", "map/posterior/credible", "map/setpoint", "world/setpoint"} <= paths
     assert "phases/strategy" not in paths and "map/sources/declared" not in paths  # the mission's copies stay out
     assert len(log.column("map/path", "LineStrips2D:strips")[0]) == n_path  # the path is the SITL's alone
-    t_img, buf = log.column("map/posterior/image", "Image:buffer")
-    _, fmt = log.column("map/posterior/image", "Image:format")
+    t_img, imgs = log.images("map/posterior/image")
     _, tr = log.vectors("map/posterior/image", "Transform3D:translation")
     assert len(t_img) == 11
-    h, w = fmt[-1][0]["height"], fmt[-1][0]["width"]
-    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(h, w, 4)
+    img = imgs[-1]
+    h, w = img.shape[:2]
     row, col = np.unravel_index(np.argmax(img[..., 3]), (h, w))
     north, east = -(tr[-1][1] + row + 0.5), tr[-1][0] + col + 0.5  # 1 m cells
     assert math.hypot(north - 30.0, east + 5.0) <= 1.0

@@ -21,13 +21,12 @@ def test_posterior_image_is_cropped_to_its_visible_cells_at_the_same_place(tmp_p
     with RunRecorder(path, scenario="open-field", strategy="infotaxis") as rec:
         rec.posterior(10.0, p, extent, ((60.5, -3.5), 3.0))
     log = RrdLog(path)
-    _, fmt = log.column("map/posterior/image", "Image:format")
-    h, w = fmt[-1][0]["height"], fmt[-1][0]["width"]
+    _, imgs = log.images("map/posterior/image")
+    img = imgs[-1]
+    h, w = img.shape[:2]
     assert (h, w) == (11, 11), (h, w)
     _, tr = log.vectors("map/posterior/image", "Transform3D:translation")
     _, sc = log.vectors("map/posterior/image", "Transform3D:scale")
-    _, buf = log.column("map/posterior/image", "Image:buffer")
-    img = np.frombuffer(bytes(buf[-1][0]), dtype=np.uint8).reshape(h, w, 4)
     row, col = np.unravel_index(np.argmax(img[..., 3]), (h, w))
     east, north = tr[-1][0] + (col + 0.5) * sc[-1][0], -(tr[-1][1] + (row + 0.5) * sc[-1][1])
     assert (north, east) == (60.5, -3.5)

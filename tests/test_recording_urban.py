@@ -43,10 +43,8 @@ def urban(tmp_path_factory: pytest.TempPathFactory) -> tuple[RrdLog, object, obj
 
 def _image(log: RrdLog, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """RGBA (H, W, 4) of a static image and its Transform3D translation and scale (map units)."""
-    _, buf = log.column(entity, "Image:buffer")
-    _, fmt = log.column(entity, "Image:format")
-    f = fmt[-1][0]
-    img = np.asarray(buf[-1][0], dtype=np.uint8).reshape(f["height"], f["width"], 4)
+    _, imgs = log.images(entity)  # a PNG (recording.png) or raw
+    img = imgs[-1]
     _, tr = log.column(entity, "Transform3D:translation")
     _, sc = log.column(entity, "Transform3D:scale")
     return img, np.asarray(tr[-1][0], dtype=float), np.asarray(sc[-1][0], dtype=float)
