@@ -8,7 +8,7 @@ horizontal wind (the issue's figure), the 95 % coverage of the stated horizontal
 the autopilot's heading error (its published attitude against windseek's true one) the compass found.
 
 Time: the autopilot's boot clock is aligned to the simulation's roughly by the lift-off (the first time above
-2 m in GLOBAL_POSITION_INT and in the recording's altitude), then to the 0.02 s that best matches the estimates
+2 m in GLOBAL_POSITION_INT, else LOCAL_POSITION_NED, and in the recording's altitude), then to the 0.02 s that best matches the estimates
 made without the compass to the truth (the turbulence the estimator follows makes a 1 s slip look like 1 m/s
 of error; PX4 in lockstep runs on the simulation's clock, ArduCopter on its own); estimates are scored every
 0.1 s from 10 s after the lift-off to the end of the recording's truth.
@@ -142,6 +142,8 @@ def flight(d: Path, imu_average: int, sigma_deg: float) -> dict[str, Any]:
     msgs = read_tlog(d / "estimator.tlog")
     log = RrdLog(d / "windseek.rrd")
     gp = [(m.time_boot_ms * 1e-3, m.relative_alt * 1e-3) for m in msgs if m.get_type() == "GLOBAL_POSITION_INT"]
+    if not gp:  # ArduCopter's companion port: the height above the local origin
+        gp = [(m.time_boot_ms * 1e-3, -m.z) for m in msgs if m.get_type() == "LOCAL_POSITION_NED"]
     ta, alt = np.array(gp).T
     tr, alt_r = log.scalars("flight/altitude/vehicle")
     rough = lift_off_s(tr, alt_r) - lift_off_s(ta, alt)  # simulation time - autopilot time
