@@ -203,7 +203,7 @@ def watch_innovation(y: np.ndarray, S: np.ndarray, det: np.ndarray, a: float, b:
     by a mass change. Innovations that stay biased longer are model error: then neither.
 
     ``y``, ``S``: the accelerometer innovation (FRD, m/s^2) and its covariance; only x and y enter.
-    ``a``, ``b``: the low-pass and baseline weights of this step; ``dt``: its length (s).
+    ``a``, ``b``: the low-pass and baseline weights of this step; ``dt``: the span it closes (s).
     ``det`` (:data:`D_SIZE`): the detector's state, updated in place; ``cfg``: its settings.
     """
     d = 0.0
@@ -239,10 +239,10 @@ def accel_step(
 ) -> tuple[int, int]:  # fmt: skip
     """One IMU step: :func:`predict` over ``n_steps`` of ``dt`` s (with ``fz_pred``, the low-passed body-z
     specific force before this sample), then the accelerometer update with ``z`` (FRD, m/s^2), noise ``Rn``
-    and ``fz_ref`` (after it): :func:`accel_innovation`, :func:`watch_innovation` (weights ``a``, ``b``,
-    ``dt_last`` the length of the last prediction span, s),
-    the force scale's gain row restricted to the body-z innovation (zero unless ``learn_scale`` and the
-    detector's hold is over), :func:`estimator.sigma_kernels.apply_gain` in the general form.
+    and ``fz_ref`` (after it): :func:`accel_innovation`, :func:`watch_innovation` (weights ``a``, ``b``;
+    ``dt_last``: the last prediction span, s), the force scale's gain row restricted to the body-z
+    innovation (zero unless ``learn_scale`` and the detector's hold is over), and
+    :func:`estimator.sigma_kernels.apply_gain` in the general form.
 
     ``w``: (sig, sig_f, L, x_new, P_new) of :class:`Work`; ``m``: (S, Pxz, y, K, Lz) of a 3-component
     :class:`Measurement`; ``nis``: (y, S) copied there when the innovation succeeded. A failed update
