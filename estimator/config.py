@@ -75,7 +75,7 @@ class EstimatorConfig:
     #: exact model, 4-8 s: horizontal ~0.05 m/s worse).
     scale_hold_s: float = 1.5
     scale_release_wind_sigma_m_s: float = 1.0
-    #: Transient detector (see WindEstimator._watch_innovation): time constant (s) of the
+    #: Transient detector (see estimator.step_kernels.watch_innovation): time constant (s) of the
     #: low-passed normalized accelerometer innovation, its threshold, and how long (s) the
     #: force scale stays frozen after it fires.
     transient_tau_s: float = 0.25

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from vehicle.params import P_G, P_MASS
-from vehicle.rotor_model import rotor_wrench
+from vehicle.params import MAX_ROTORS, P_G, P_MASS
+from vehicle.rotor_model import N_COEF, rotor_wrench_into
 
 
 @njit(cache=True)
@@ -29,14 +29,35 @@ def specific_force(
     (a mass error); the z correction leaves out the fast thrust fluctuations on purpose (see
     EstimatorConfig.scale_state).
     """
+    out = np.empty(3)
+    specific_force_into(x, R, rates, w_rot, p, i_scale, fz_ref, ForceScratch(), out)
+    return out
+
+
+#: Scratch arrays of :func:`specific_force_into`: airspeed (3, FRD m/s), zero rotor accelerations
+#: (MAX_ROTORS), the regressors (N_COEF) and the wrench (6).
+ForceScratchT = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+@njit(cache=True)
+def ForceScratch() -> ForceScratchT:  # noqa: N802 - named as the type it makes
+    """New :data:`ForceScratchT` arrays (allocated once per batch of sigma points)."""
+    return np.empty(3), np.zeros(MAX_ROTORS), np.empty(N_COEF), np.empty(6)
+
+
+@njit(cache=True, inline="always")
+def specific_force_into(
+    x: np.ndarray, R: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, i_scale: int, fz_ref: float,
+    scratch: ForceScratchT, out: np.ndarray,
+) -> None:  # fmt: skip
+    """:func:`specific_force` into ``out`` (3,), with ``scratch`` (:func:`ForceScratch`): no allocation."""
+    v_air, w_dot, reg, fm = scratch
     W0, W1, W2 = x[3], x[4], x[5]
-    v_air = np.empty(3)
     for i in range(3):
         # R^T W: the wind (NED) seen in body axes.
         v_air[i] = x[i] - (R[0, i] * W0 + R[1, i] * W1 + R[2, i] * W2)
-    fm = rotor_wrench(v_air, rates, w_rot, np.zeros(4), p)
+    rotor_wrench_into(v_air, rates, w_rot, w_dot, p, reg, fm)
     im = 1.0 / p[P_MASS]
-    out = np.empty(3)
     if i_scale >= 0:
         sc = x[i_scale]
         out[0] = fm[0] * im * sc
@@ -46,7 +67,6 @@ def specific_force(
         out[0] = fm[0] * im
         out[1] = fm[1] * im
         out[2] = fm[2] * im
-    return out
 
 
 @njit(cache=True)
@@ -67,9 +87,11 @@ def process_batch(
     EstimatorConfig; 1 = random walk)."""
     g = p[P_G]
     pr, qr, rr = rates[0], rates[1], rates[2]
+    scratch = ForceScratch()
+    f = np.empty(3)
     for k in range(sigmas.shape[0]):
         x = sigmas[k]
-        f = specific_force(x, R, rates, w_rot, p, i_scale, fz_ref)
+        specific_force_into(x, R, rates, w_rot, p, i_scale, fz_ref, scratch, f)
         u, v, w = x[0], x[1], x[2]
         # Gravity in body axes is the third row of R (R^T [0, 0, g]); the rates x v term is
         # the rotation of the body axes the velocity is expressed in.
@@ -98,8 +120,10 @@ def accel_batch(
     + bias; ``bias_idx[i]`` is the state index of the body-axis-i bias, -1 = no bias state."""
     n = sigmas.shape[0]
     out = np.empty((n, 3))
+    scratch = ForceScratch()
+    f = np.empty(3)
     for k in range(n):
-        f = specific_force(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref)
+        specific_force_into(sigmas[k], R, rates, w_rot, p, i_scale, fz_ref, scratch, f)
         for i in range(3):
             j = bias_idx[i]
             out[k, i] = f[i] + (sigmas[k, j] if j >= 0 else 0.0)

@@ -4,6 +4,9 @@ unscented arithmetic (``sigma_kernels``).
 - :func:`predict`: propagate (x, P) over ``n_steps`` Euler steps of ``dt`` seconds (Eq. 49):
   sigma points of (x, P), each through the process model, unscented mean and covariance plus
   the process noise diag(q) dt (wind entries times ``wind_gain``).
+- :func:`accel_step`: one IMU step in one compiled call: :func:`predict`, :func:`accel_innovation`,
+  the transient detector (:func:`watch_innovation`), the force scale's restricted gain and
+  :func:`estimator.sigma_kernels.apply_gain`.
 - :func:`accel_innovation` / :func:`velocity_innovation`: sigma points of the current (x, P)
   through the accelerometer model (FRD specific force, m/s^2) or the NED velocity R v_body
   (m/s; the first ``nz`` components), then innovation, its covariance and the optimal gain.
@@ -17,11 +20,25 @@ on the Python side. Inputs held between samples: ``R`` attitude DCM body FRD -> 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from estimator.model_kernels import accel_batch, process_batch
-from estimator.sigma_kernels import innovation, sigma_points, unscented_transform
+from estimator.sigma_kernels import apply_gain, innovation, sigma_points, unscented_transform
+
+# The transient detector's state (``det``, see :func:`watch_innovation`): its indices.
+#: Low-passed normalized horizontal accelerometer innovation (x, y) and its slow baseline (x, y).
+D_EMA, D_SLOW = 0, 2
+#: Seconds the detector has been firing without a break; seconds the force scale stays frozen.
+D_FIRING, D_LEFT = 4, 5
+#: Wind process-noise multiplier (> 1 while a transient is detected); times the detector fired.
+D_Q_GAIN, D_COUNT = 6, 7
+D_SIZE = 8
+# Its settings (``det_cfg``): the threshold on the normalized innovation, the longest firing (s),
+# the hold of the force scale (s), the wind process-noise multiplier while firing.
+C_THRESHOLD, C_MAX_S, C_HOLD_S, C_Q_GAIN = 0, 1, 2, 3
 
 
 class Measurement:
@@ -166,4 +183,92 @@ def velocity_innovation(
     return innovation(sig, x, h, Wm, Wc, Rn, z, S, Pxz, y, K, Lz)
 
 
-__all__ = ["Measurement", "Work", "accel_innovation", "predict", "velocity_innovation"]
+def detector(threshold: float, max_s: float, hold_s: float, q_gain: float) -> tuple[np.ndarray, np.ndarray]:
+    """A transient detector's initial state (quiet: wind process-noise multiplier 1) and its settings
+    array for :func:`watch_innovation` (see there; ``EstimatorConfig.transient_*``)."""
+    det = np.zeros(D_SIZE)
+    det[D_Q_GAIN] = 1.0
+    cfg = np.zeros(4)
+    cfg[C_THRESHOLD], cfg[C_MAX_S], cfg[C_HOLD_S], cfg[C_Q_GAIN] = threshold, max_s, hold_s, q_gain
+    return det, cfg
+
+
+@njit(cache=True, nogil=True)
+def watch_innovation(y: np.ndarray, S: np.ndarray, det: np.ndarray, a: float, b: float, dt: float,
+                     cfg: np.ndarray) -> None:  # fmt: skip
+    """Transient detector: a low-passed normalized horizontal accelerometer innovation far from its
+    slow baseline means the wind is changing faster than its random walk. While it fires (at most
+    ``cfg[C_MAX_S]`` s without a break) the wind process noise is raised (``det[D_Q_GAIN]``) and the
+    force scale is frozen for ``cfg[C_HOLD_S]`` s (``det[D_LEFT]``): a wind step must not be explained
+    by a mass change. Innovations that stay biased longer are model error: then neither.
+
+    ``y``, ``S``: the accelerometer innovation (FRD, m/s^2) and its covariance; only x and y enter.
+    ``a``, ``b``: the low-pass and baseline weights of this step; ``dt``: the span it closes (s).
+    ``det`` (:data:`D_SIZE`): the detector's state, updated in place; ``cfg``: its settings.
+    """
+    d = 0.0
+    for k in range(2):
+        nu = y[k] / math.sqrt(S[k, k])
+        det[D_EMA + k] = (1.0 - a) * det[D_EMA + k] + a * nu
+        det[D_SLOW + k] = (1.0 - b) * det[D_SLOW + k] + b * nu
+        v = abs(det[D_EMA + k] - det[D_SLOW + k])
+        if v > d:
+            d = v
+    if d > cfg[C_THRESHOLD]:
+        if det[D_FIRING] == 0.0:
+            det[D_COUNT] += 1.0
+        det[D_FIRING] += dt
+        if det[D_FIRING] <= cfg[C_MAX_S]:
+            det[D_LEFT] = cfg[C_HOLD_S]
+            det[D_Q_GAIN] = cfg[C_Q_GAIN]
+        else:
+            det[D_LEFT] = 0.0
+            det[D_Q_GAIN] = 1.0
+    else:
+        det[D_FIRING] = 0.0
+        det[D_Q_GAIN] = 1.0
+
+
+@njit(cache=True, nogil=True)
+def accel_step(
+    x: np.ndarray, P: np.ndarray, z: np.ndarray, Rn: np.ndarray, R: np.ndarray, rates: np.ndarray,
+    w_rot: np.ndarray, p: np.ndarray, n_steps: int, dt: float, decay_d: float, fz_pred: float, fz_ref: float,
+    q: np.ndarray, i_scale: int, bias_idx: np.ndarray, learn_scale: bool, Wm: np.ndarray, Wc: np.ndarray,
+    c: float, det: np.ndarray, det_cfg: np.ndarray, a: float, b: float, dt_last: float, w: tuple, m: tuple,
+    nis: tuple,
+) -> tuple[int, int]:  # fmt: skip
+    """One IMU step: :func:`predict` over ``n_steps`` of ``dt`` s (with ``fz_pred``, the low-passed body-z
+    specific force before this sample), then the accelerometer update with ``z`` (FRD, m/s^2), noise ``Rn``
+    and ``fz_ref`` (after it): :func:`accel_innovation`, :func:`watch_innovation` (weights ``a``, ``b``;
+    ``dt_last``: the last prediction span, s), the force scale's gain row restricted to the body-z
+    innovation (zero unless ``learn_scale`` and the detector's hold is over), and
+    :func:`estimator.sigma_kernels.apply_gain` in the general form.
+
+    ``w``: (sig, sig_f, L, x_new, P_new) of :class:`Work`; ``m``: (S, Pxz, y, K, Lz) of a 3-component
+    :class:`Measurement`; ``nis``: (y, S) copied there when the innovation succeeded. A failed update
+    leaves (x, P) as they were with 1e-6 added to the diagonal of P. Returns (failed prediction
+    sub-steps, update status: 0 done, 1 innovation failed, 2 gain failed).
+    """
+    sig, sig_f, L, x_new, P_new = w
+    S, Pxz, y, K, Lz = m
+    failed = predict(x, P, n_steps, dt, R, rates, w_rot, p, decay_d, i_scale, fz_pred, q, det[D_Q_GAIN], Wm, Wc, c,
+                     sig, sig_f, L, x_new, P_new)  # fmt: skip
+    status = 1
+    if accel_innovation(x, P, z, Rn, R, rates, w_rot, p, i_scale, bias_idx, fz_ref, Wm, Wc, c, sig, L, S, Pxz, y,
+                        K, Lz):  # fmt: skip
+        watch_innovation(y, S, det, a, b, dt_last, det_cfg)
+        nis[0][:] = y
+        nis[1][:, :] = S
+        if i_scale >= 0:
+            K[i_scale, :] = 0.0
+            if learn_scale and det[D_LEFT] <= 0.0:
+                K[i_scale, 2] = Pxz[i_scale, 2] / S[2, 2]
+        status = 0 if apply_gain(x, P, K, S, Pxz, y, i_scale >= 0, x_new, P_new) else 2
+    if status:
+        for i in range(x.shape[0]):
+            P[i, i] += 1e-6
+    return failed, status
+
+
+__all__ = ["Measurement", "Work", "accel_innovation", "accel_step", "detector", "predict", "velocity_innovation",
+           "watch_innovation"]

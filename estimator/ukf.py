@@ -57,12 +57,14 @@ The class is plain, synchronous and deterministic: no I/O, no threads, no random
 
 Implementation: the unscented filter of filterpy (``UnscentedKalmanFilter`` with
 ``MerweScaledSigmaPoints``), written out as numba kernels over the filter's small arrays
-(``sigma_kernels``, ``step_kernels``): one IMU step is three compiled calls. filterpy is the
-reference: ``tests/test_estimator_reference.py`` runs both on the same data.
+(``sigma_kernels``, ``step_kernels``): one IMU step is one compiled call (``step_kernels.accel_step``:
+prediction, accelerometer update, transient detector). filterpy is the reference:
+``tests/test_estimator_reference.py`` runs both on the same data.
 
-Files: this module is the filter (state, prediction, updates, transient detector, GNSS delay);
+Files: this module is the filter (state, inputs, clocks, GNSS update and delay);
 ``estimator.config`` its tuning and presets, ``estimator.model_kernels`` the force model,
-``estimator.step_kernels`` / ``estimator.sigma_kernels`` the unscented arithmetic (numba),
+``estimator.step_kernels`` / ``estimator.sigma_kernels`` the unscented arithmetic and the
+transient detector (numba),
 ``estimator.gating`` the input checks, ``estimator.outputs`` the estimate.
 """
 
@@ -79,7 +81,7 @@ from estimator.gating import InputGate
 from estimator.imu_rate import ImuRate
 from estimator.outputs import EstimatorOutputs, WindEstimate
 from estimator.sigma_kernels import apply_gain, merwe_weights
-from estimator.step_kernels import Work, accel_innovation, predict, velocity_innovation
+from estimator.step_kernels import D_COUNT, D_LEFT, D_Q_GAIN, Work, accel_step, detector, predict, velocity_innovation
 from vehicle.frames import quat_to_dcm
 from vehicle.params import P_G, P_WMAX, VehicleParams
 
@@ -131,7 +133,10 @@ class WindEstimator(EstimatorOutputs):
             x0.append(0.0)
         self.n = n
         self._Wm, self._Wc, self._c = merwe_weights(n, cfg.alpha, cfg.beta, cfg.kappa)
-        self._work = Work(n)
+        self._work = w = Work(n)
+        self._w = (w.sig, w.sig_f, w.L, w.x_new, w.P_new)  # accel_step's scratch
+        m3 = w.meas[3]
+        self._m3 = (m3.S, m3.Pxz, m3.y, m3.K, m3.Lz)
         self.x = np.array(x0, dtype=float)  # state mean (see the module docstring)
         self.P = np.diag(np.array(P0, dtype=float))  # state covariance
         self._q_density = np.array(q)
@@ -140,20 +145,19 @@ class WindEstimator(EstimatorOutputs):
         self.t: float | None = None  # filter time, s
         self._t_first: float | None = None  # time of the first prediction, s
         self.scale_released = not cfg.scale_state
-        self._nu_ema = [0.0, 0.0]  # low-passed normalized horizontal accel innovation
         self._fz_ref = -float(self._p[P_G])  # low-passed measured body-z specific force, m/s^2
         self._fz_seen = False
         self._ema_alpha = 1.0
-        self._transient_left = 0.0  # s
-        self._wind_q_gain = 1.0  # wind process-noise multiplier (> 1 while a transient is detected)
-        self._nu_slow = [0.0, 0.0]  # its slow baseline
-        self._firing_s = 0.0  # how long the transient detector has been firing without a break, s
+        # The transient detector's state and settings (step_kernels.watch_innovation).
+        self._det, self._det_cfg = detector(cfg.transient_threshold, cfg.transient_max_s, cfg.transient_hold_s,
+                                            cfg.transient_wind_q_gain)  # fmt: skip
         self._dt_last = 0.0
         self._bias_cov: tuple[float, np.ndarray] | None = None  # EstimatorOutputs.unseen_bias_cov's cache
         self.heading_sigma_rad = 0.0  # stated 1-sigma of the attitude's heading (estimator.compass), rad
         self.imu_rate = ImuRate(cfg.accel_noise_rate_hz)  # the accelerometer variance per sample at the stream's rate
-        self.transients = 0  # times the transient detector fired
-        self.last_nis = math.nan  # the last accelerometer update's normalized innovation squared
+        # The last successful accelerometer innovation and its covariance (last_nis), and whether there was one.
+        self._nis = (np.zeros(3), np.zeros((3, 3)))
+        self._nis_seen = False
         self._R: np.ndarray | None = None  # attitude DCM body->NED
         self._q_att: np.ndarray | None = None
         self._rates = np.zeros(3)
@@ -228,14 +232,26 @@ class WindEstimator(EstimatorOutputs):
         a, g = checked
         if g is not None:
             self._rates = g.copy()
-        self.predict_to(t)
+        R, w_rot = self._R, self._w_rot
+        assert R is not None and w_rot is not None  # the gate checked ``ready``
+        n_steps, dt, decay = self._plan(t)
+        fz_pred = self._fz_ref
         if self._fz_seen:
             self._fz_ref += min(1.0, self._ema_alpha * self.config.transient_tau_s / self.config.fz_ref_tau_s) * (
                 a[2] - self._fz_ref
             )
         else:
             self._fz_ref, self._fz_seen = float(a[2]), True
-        self._update(a, self._R_accel * self.imu_rate.factor(t), "accel")
+        f = self.imu_rate.factor(t)
+        failed, status = accel_step(
+            self.x, self.P, a, self._R_accel if f == 1.0 else self._R_accel * f, R, self._rates, w_rot,
+            self._p, n_steps, dt, decay, fz_pred, self._fz_ref, self._q_density, self._i_scale, self._bias_idx,
+            self.scale_released, self._Wm, self._Wc, self._c, self._det, self._det_cfg, self._ema_alpha,
+            min(1.0, self._dt_last / self.config.transient_baseline_tau_s), self._dt_last, self._w, self._m3, self._nis,
+        )  # fmt: skip
+        self._nis_seen = self._nis_seen or status != 1
+        if failed or status:
+            self.rejected["numerical"] += failed + (status != 0)
         self.accepted["imu"] += 1
         self._record_history()
         return True
@@ -262,38 +278,45 @@ class WindEstimator(EstimatorOutputs):
                 return self._reject("gnss:stale")
             shift = self._R @ self.x[0:3] - past
         self._gate.mark("gnss", t_valid)
-        self._update(v + shift[:nz], self._R_gnss[:nz, :nz], "gnss")
+        self._velocity_update(v + shift[:nz], self._R_gnss[:nz, :nz])
         self.accepted["gnss"] += 1
         return True
 
     # ------------------------------------------------------------------ filter core
     def predict_to(self, t: float) -> None:
         """Predict the state to time t (s) with the held inputs; covariance grows over gaps."""
+        n, dt, decay = self._plan(t)
+        R, w_rot = self._R, self._w_rot
+        if n and R is not None and w_rot is not None:
+            failed = predict(
+                self.x, self.P, n, dt, R, self._rates, w_rot, self._p, decay, self._i_scale,
+                self._fz_ref, self._q_density, self._det[D_Q_GAIN], self._Wm, self._Wc, self._c, *self._w,
+            )  # fmt: skip
+            if failed:
+                self.rejected["numerical"] += failed
+
+    def _plan(self, t: float) -> tuple[int, float, float]:
+        """Advance the filter time to t (s) and its clocks (scale release, transient hold, low-pass weight);
+        returns the prediction to run: (sub-steps, each one's length in s, the vertical wind's decay over
+        one). No sub-steps on the first sample, without a forward span or before the inputs are held."""
         if self.t is None:
             self.t = self._t_first = t
-            return
+            return 0, 0.0, 1.0
         if not self.scale_released:
             self._maybe_release_scale(t)
         span = t - self.t
         if span > 0.0:
-            self._transient_left -= span
+            self._det[D_LEFT] -= span
             self._dt_last = span
             self._ema_alpha = min(1.0, span / self.config.transient_tau_s)
         span = min(t - self.t, self.config.max_gap_s)
-        if span > 0.0 and self._R is not None and self._w_rot is not None:
-            n = max(1, math.ceil(span / self.config.max_step_s - 1e-9))
-            dt = span / n
-            tau = self.config.vertical_wind_tau_s
-            decay = math.exp(-dt / tau) if tau else 1.0
-            w = self._work
-            failed = predict(
-                self.x, self.P, n, dt, self._R, self._rates, self._w_rot, self._p, decay, self._i_scale,
-                self._fz_ref, self._q_density, self._wind_q_gain, self._Wm, self._Wc, self._c,
-                w.sig, w.sig_f, w.L, w.x_new, w.P_new,
-            )  # fmt: skip
-            if failed:
-                self.rejected["numerical"] += failed
         self.t = max(self.t, t)
+        if not (span > 0.0 and self._R is not None and self._w_rot is not None):
+            return 0, 0.0, 1.0
+        n = max(1, math.ceil(span / self.config.max_step_s - 1e-9))
+        dt = span / n
+        tau = self.config.vertical_wind_tau_s
+        return n, dt, math.exp(-dt / tau) if tau else 1.0
 
     def _maybe_release_scale(self, t: float) -> None:
         cfg = self.config
@@ -313,80 +336,44 @@ class WindEstimator(EstimatorOutputs):
         self._q_density[i] = cfg.scale_walk_per_sqrt_s**2
         self.scale_released = True
 
-    def _update(self, z: np.ndarray, Rn: np.ndarray, kind: str) -> None:
-        """Unscented update with sigma points of the current (x, P); the force scale only learns
-        from the body-z accelerometer innovation, and not during a transient.
+    def _velocity_update(self, z: np.ndarray, Rn: np.ndarray) -> None:
+        """Unscented update with a NED velocity ``z`` (m/s, 2 or 3 components; noise ``Rn``) with sigma
+        points of the current (x, P); the force scale does not learn from it (its gain row is zero).
 
-        The scale's gain row is restricted (a suboptimal gain), so the covariance is updated
-        in the general form P - K Pxz^T - Pxz K^T + K S K^T, valid for any gain. A numerical
-        failure leaves (x, P) as they were (1e-6 added to the diagonal of P) and is counted.
-        """
-        Rm, w_rot = self._R, self._w_rot
-        if Rm is None or w_rot is None:  # not ready: callers check first
+        The covariance is updated in the general form P - K Pxz^T - Pxz K^T + K S K^T when the scale's
+        row is restricted. A numerical failure leaves (x, P) as they were (1e-6 added to the diagonal of P)
+        and is counted. The accelerometer update is ``step_kernels.accel_step`` (in :meth:`imu`)."""
+        Rm = self._R
+        if Rm is None:  # not ready: callers check first
             return
         w = self._work
         m = w.meas[z.shape[0]]
-        if kind == "accel":
-            ok = accel_innovation(
-                self.x, self.P, z, Rn, Rm, self._rates, w_rot, self._p, self._i_scale, self._bias_idx,
-                self._fz_ref, self._Wm, self._Wc, self._c, w.sig, w.L, m.S, m.Pxz, m.y, m.K, m.Lz,
-            )  # fmt: skip
-        else:
-            ok = velocity_innovation(
-                self.x, self.P, z, Rn, Rm, self._Wm, self._Wc, self._c, w.sig, w.L, m.h, m.S, m.Pxz, m.y, m.K, m.Lz
-            )
+        ok = velocity_innovation(
+            self.x, self.P, z, Rn, Rm, self._Wm, self._Wc, self._c, w.sig, w.L, m.h, m.S, m.Pxz, m.y, m.K, m.Lz
+        )
         if ok:
-            if kind == "accel":
-                self._watch_innovation(m.y, m.S)
-                # The normalized innovation squared y' S^-1 y (chi-square with 3 degrees of freedom when the
-                # model and the noise are right): estimator.model_fit's running innovation test reads it.
-                self.last_nis = float(m.y @ np.linalg.solve(m.S, m.y))
             i = self._i_scale
             if i >= 0:
                 m.K[i, :] = 0.0
-                if kind == "accel" and self.scale_released and self._transient_left <= 0.0:
-                    m.K[i, 2] = m.Pxz[i, 2] / m.S[2, 2]
             ok = apply_gain(self.x, self.P, m.K, m.S, m.Pxz, m.y, i >= 0, w.x_new, w.P_new)
         if not ok:
             self.P[np.diag_indices(self.n)] += 1e-6
             self.rejected["numerical"] += 1
 
-    def _watch_innovation(self, y: np.ndarray, S: np.ndarray) -> None:
-        """Transient detector: a low-passed normalized horizontal accelerometer innovation far
-        from zero means the wind is changing faster than its random walk. While it lasts the wind
-        process noise is raised (``transient_wind_q_gain``), and for ``transient_hold_s`` after
-        it the force scale is frozen (a wind step must not be explained by a mass change).
+    @property
+    def transients(self) -> int:
+        """Times the transient detector fired (``step_kernels.watch_innovation``)."""
+        return int(self._det[D_COUNT])
 
-        Scalar arithmetic on the two horizontal axes (the z axis never enters the decision)."""
-        cfg = self.config
-        a = self._ema_alpha
-        b = min(1.0, self._dt_last / cfg.transient_baseline_tau_s)
-        ema, slow = self._nu_ema, self._nu_slow
-        yl = y.tolist()  # Python floats: cheaper than numpy scalars here
-        d = 0.0
-        for k in (0, 1):
-            nu = yl[k] / math.sqrt(S.item(k, k))
-            ema[k] = (1.0 - a) * ema[k] + a * nu
-            slow[k] = (1.0 - b) * slow[k] + b * nu
-            d = max(d, abs(ema[k] - slow[k]))
-        # Horizontal axes only, against the slow baseline: a persistent innovation (z, or a
-        # steady bias on x and y) is what a force-model error looks like and the scale must
-        # learn from it; a wind step is a fast change on x and y.
-        if d > cfg.transient_threshold:
-            if self._firing_s == 0.0:
-                self.transients += 1
-            self._firing_s += self._dt_last
-            if self._firing_s <= cfg.transient_max_s:
-                self._transient_left = cfg.transient_hold_s
-                self._wind_q_gain = cfg.transient_wind_q_gain
-            else:
-                # Innovations that stay biased are model error, not a wind step: the scale
-                # must learn from them, so neither freeze it nor keep the wind noise raised.
-                self._transient_left = 0.0
-                self._wind_q_gain = 1.0
-        else:
-            self._firing_s = 0.0
-            self._wind_q_gain = 1.0
+    @property
+    def last_nis(self) -> float:
+        """The last accelerometer update's normalized innovation squared y' S^-1 y (chi-square with 3 degrees
+        of freedom when the model and the noise are right; NaN before the first): estimator.model_fit's
+        running innovation test reads it. Computed when read."""
+        if not self._nis_seen:
+            return math.nan
+        y, S = self._nis
+        return float(y @ np.linalg.solve(S, y))
 
     @property
     def rotor_speeds(self) -> np.ndarray | None:

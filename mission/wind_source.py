@@ -25,16 +25,16 @@ import math
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 
 from estimator.direction import DirectionFilter, speed_direction
 from estimator.ground_gate import GroundGate
-from estimator.models import AhrsErrorModel, model_params
+from estimator.models import AhrsErrorModel, ahrs_attitudes, model_params
 from estimator.ukf import EstimatorConfig, WindEstimator
 from mission.strategies.base import WindInfo
 from mission.strategies.params import CommonParams
 from mission.wind_modes import INPROCESS_WIND_MODES
 from sitl.simulation import T_QUAT, Simulation
-from vehicle.frames import quat_mul
 from vehicle.params import VehicleParams
 
 
@@ -137,19 +137,10 @@ class EstimatedWind:
         #: (time-stamped at the last one): a 2:1 average halves the UKF cost (it runs one
         #: predict + update per sample) and averages out sensor noise.
         self.decimation = int(imu_decimation)
-        self._acc_sum = np.zeros(3)
-        self._gyr_sum = np.zeros(3)
+        self._sums = np.zeros((2, 3))  # the running sums of accelerometer and gyro samples (FRD)
         self._n_sum = 0
-
-    def _attitude(self, q_true: np.ndarray) -> np.ndarray:
         # First-order Gauss-Markov attitude error (an autopilot EKF's slowly wandering error).
-        a = math.exp(-self._dt_imu / self.ahrs.tau_s)
-        sig = math.radians(self.ahrs.sigma_deg)
-        self._att_err = a * self._att_err + math.sqrt(1.0 - a * a) * sig * self._rng.standard_normal(3)
-        e = self._att_err
-        dq = np.array([1.0, 0.5 * e[0], 0.5 * e[1], 0.5 * e[2]])
-        q = quat_mul(q_true, dq / np.linalg.norm(dq))
-        return q / np.linalg.norm(q)
+        self._ahrs_a, self._ahrs_c = self.ahrs.coefficients(self._dt_imu)
 
     def update(self, drained: dict[str, list]) -> WindInfo | None:
         sim = self.sim
@@ -164,35 +155,74 @@ class EstimatedWind:
         action = self._gate.admit(self.sim.fc.on_ground)  # paused on the ground (estimator.ground_gate)
         if action == "pause":
             self._pending_gnss.clear()
-            self._acc_sum[:] = 0.0
-            self._gyr_sum[:] = 0.0
+            self._sums[:] = 0.0
             self._n_sum = 0
             return self.upwind.make(self.estimator.wind_ned, self.estimator.wind_cov)
         if action == "restart":
             self.estimator = WindEstimator(self._model, self._config)
             self.restarts += 1
         est = self.estimator
+        if imu:
+            self._feed(est, imu, esc, truth)
+        return self.upwind.make(est.wind_ned, est.wind_cov)
+
+    def _feed(self, est: WindEstimator, imu: list, esc: list, truth: np.ndarray) -> None:
+        """Feed one tick's samples in time order: each IMU step (the mean of ``decimation`` samples, at
+        the last one's time) after the ESC samples up to its time, with the AHRS attitude of that sample,
+        then the GNSS fixes that have arrived by then. The AHRS error advances at every IMU sample."""
+        k = len(imu)
+        t = [s[0] for s in imu]
+        q = np.empty((k, 4))
+        ahrs_attitudes(truth[:, T_QUAT], self._att_err, self._rng.standard_normal((k, 3)), self._ahrs_a,
+                       self._ahrs_c, q)  # fmt: skip
+        idx = np.empty(k, dtype=np.int64)
+        means = np.empty((k, 2, 3))
+        m, self._n_sum = group_means(np.array([s[1] for s in imu]), np.array([s[2] for s in imu]), self._sums,
+                                     self._n_sum, self.decimation, idx, means)  # fmt: skip
         ei = 0
-        for k, (t, acc, gyr) in enumerate(imu):
-            while ei < len(esc) and esc[ei][0] <= t + 1e-9:
+        pending, latency = self._pending_gnss, self._latency
+        for j in range(m):
+            i = int(idx[j])
+            ti = t[i]
+            while ei < len(esc) and esc[ei][0] <= ti + 1e-9:
                 est.set_rotor_speeds(esc[ei][0], esc[ei][1])
                 ei += 1
-            q = self._attitude(truth[k, T_QUAT])
-            self._acc_sum += acc
-            self._gyr_sum += gyr
-            self._n_sum += 1
-            if self._n_sum < self.decimation:
-                continue
-            est.set_attitude(t, q)
-            est.imu(t, self._acc_sum / self._n_sum, self._gyr_sum / self._n_sum)
-            self._acc_sum[:] = 0.0
-            self._gyr_sum[:] = 0.0
-            self._n_sum = 0
+            est.set_attitude(ti, q[i])
+            est.imu(ti, means[j, 0], means[j, 1])
             # A fix is delivered `latency` after its time of validity, as a receiver does.
-            while self._pending_gnss and self._pending_gnss[0].t + self._latency <= t + 1e-9:
-                g = self._pending_gnss.pop(0)
+            while pending and pending[0].t + latency <= ti + 1e-9:
+                g = pending.pop(0)
                 est.gnss_velocity(g.t, g.vel_ned)
-        return self.upwind.make(est.wind_ned, est.wind_cov)
+        # ESC samples up to the tick's last IMU sample are in force at the next step; later ones are dropped.
+        while ei < len(esc) and esc[ei][0] <= t[-1] + 1e-9:
+            est.set_rotor_speeds(esc[ei][0], esc[ei][1])
+            ei += 1
+
+
+@njit(cache=True)
+def group_means(acc: np.ndarray, gyr: np.ndarray, sums: np.ndarray, n_sum: int, d: int, idx: np.ndarray,
+                means: np.ndarray) -> tuple[int, int]:  # fmt: skip
+    """The means of every ``d`` consecutive IMU samples: ``acc``, ``gyr`` (k, 3; FRD, m/s^2 and rad/s)
+    added in order to the running sums ``sums`` (2, 3; in place) of the ``n_sum`` samples carried
+    over from the previous call. At each d-th sample: its index to ``idx``, the means to ``means``
+    ((k, 2, 3): accelerometer, gyro), the sums cleared. Returns (steps written, samples carried)."""
+    m = 0
+    for k in range(acc.shape[0]):
+        for i in range(3):
+            sums[0, i] += acc[k, i]
+            sums[1, i] += gyr[k, i]
+        n_sum += 1
+        if n_sum < d:
+            continue
+        idx[m] = k
+        for i in range(3):
+            means[m, 0, i] = sums[0, i] / n_sum
+            means[m, 1, i] = sums[1, i] / n_sum
+            sums[0, i] = 0.0
+            sums[1, i] = 0.0
+        n_sum = 0
+        m += 1
+    return m, n_sum
 
 
 def make_wind_source(mode: str, sim: Simulation, params: CommonParams, imu_decimation: int = 1,

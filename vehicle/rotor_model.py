@@ -175,15 +175,25 @@ def rotor_wrench(
     v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, w_rot_dot: np.ndarray, p: np.ndarray
 ) -> np.ndarray:
     """Eq. 46 forces and moments, FRD body frame, SI. See the module docstring."""
-    reg = np.empty(N_COEF)
+    out = np.empty(6)
+    rotor_wrench_into(v_air, rates, w_rot, w_rot_dot, p, np.empty(N_COEF), out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def rotor_wrench_into(
+    v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, w_rot_dot: np.ndarray, p: np.ndarray, reg: np.ndarray,
+    out: np.ndarray,
+) -> None:  # fmt: skip
+    """:func:`rotor_wrench` into ``out`` (6,: [X, Y, Z] N, [L, M, N] N*m, FRD) with ``reg`` (N_COEF,) as
+    scratch for the regressors: no allocation, for the estimator's loops over sigma points."""
     model_regressors(v_air, rates, w_rot, p, reg)
-    out = np.zeros(6)
+    out[:] = 0.0
     for i in range(N_COEF):
         c = p[P_COEF0 + i]
         if c != 0.0:
             out[AXIS_OF[i]] += c * reg[i]
     known_moments(rates, w_rot, w_rot_dot, p, out)
-    return out
 
 
 def wrench(

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -179,8 +180,27 @@ def static_thrust(params: VehicleParams, omega: float) -> float:
     return float(-_steady_wrench(params, p, np.full(params.n_rotors, float(omega)), np.zeros(3))[2] / params.n_rotors)
 
 
+#: :func:`with_control_figures`' figures by the vehicle they were derived from (the repr of its parameters without
+#: them: every field, exactly). Deriving them settles the blade-element inflow some 50 times (about 60 ms of CPU);
+#: a campaign worker loads the same vehicle file for every mission.
+_FIGURES: dict[str, dict[str, Any]] = {}
+
+
 def with_control_figures(params: VehicleParams) -> VehicleParams:
-    """``params`` with :attr:`VehicleParams.control` derived from its truth at zero airspeed:
+    """``params`` with :attr:`VehicleParams.control` derived from its truth (:func:`control_figures`; the figures
+    of a vehicle seen before in this process are reused)."""
+    bare = replace(params, control={})
+    key = repr(bare)
+    control = _FIGURES.get(key)
+    if control is None:
+        if len(_FIGURES) >= 64:
+            _FIGURES.clear()
+        control = _FIGURES[key] = control_figures(bare)
+    return replace(params, control=dict(control))
+
+
+def control_figures(params: VehicleParams) -> dict[str, Any]:
+    """:attr:`VehicleParams.control` derived from the truth of ``params`` at zero airspeed:
 
     - ``kt2``, ``kt1``: one rotor's thrust ``T = kt2 w^2 + kt1 w`` (N), a least-squares fit of the
       truth's static thrust between idle and the maximum speed;
@@ -212,6 +232,4 @@ def with_control_figures(params: VehicleParams) -> VehicleParams:
         up = _steady_wrench(params, p, np.full(n, hover), rate)[3 + axis]
         down = _steady_wrench(params, p, np.full(n, hover), -rate)[3 + axis]
         damping.append(min(0.0, float((up - down) / 0.4)))
-    control = {"kt2": float(kt2), "kt1": float(kt1), "km": float(km), "damping": tuple(damping),
-               "hover_speed": hover}  # fmt: skip
-    return replace(params, control=control)
+    return {"kt2": float(kt2), "kt1": float(kt1), "km": float(km), "damping": tuple(damping), "hover_speed": hover}
