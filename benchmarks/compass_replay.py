@@ -2,16 +2,17 @@
 
 ``benchmarks/autopilot_wind.py --keep DIR`` leaves, per flight, the messages ``windseek estimator`` received
 (``estimator.tlog``) and windseek's recording with the truth (``windseek.rrd``, with ``--rrd``). This replays
-each log through :class:`estimator.live.LiveCore` twice, with the compass check (``estimator/compass.py``) and
-without it, so both see the very same samples, and scores both against the truth: RMSE of 1-s means of the
-horizontal wind (the issue's figure), the 95 % coverage of the stated horizontal uncertainty, and how much of
-the autopilot's heading error (its published attitude against windseek's true one) the compass found.
+each log through :class:`estimator.live.LiveCore` three times (:func:`VARIANTS`: neither the compass check of
+``estimator/compass.py`` nor the autopilot's own heading sigma, the check alone, both), so all see the very
+same samples, and scores each against the truth: RMSE of 1-s means of the horizontal wind (the issue's
+figure), the 95 % coverage of the stated horizontal uncertainty, and the heading error of the autopilot's
+published attitude against windseek's true one.
 
 Time: the autopilot's boot clock is aligned to the simulation's roughly by the lift-off (the first time above
-2 m in GLOBAL_POSITION_INT, else LOCAL_POSITION_NED, and in the recording's altitude), then to the 0.02 s that best matches the estimates
-made without the compass to the truth (the turbulence the estimator follows makes a 1 s slip look like 1 m/s
-of error; PX4 in lockstep runs on the simulation's clock, ArduCopter on its own); estimates are scored every
-0.1 s from 10 s after the lift-off to the end of the recording's truth.
+2 m in GLOBAL_POSITION_INT, else LOCAL_POSITION_NED, and in the recording's altitude), then to the 0.02 s that
+best matches the estimates made without the compass to the truth (the turbulence the estimator follows makes
+a 1 s slip look like 1 m/s of error; PX4 in lockstep runs on the simulation's clock, ArduCopter on its own);
+estimates are scored every 0.1 s from 10 s after the lift-off to the end of the recording's truth.
 
 Usage: ``python benchmarks/compass_replay.py DIR [--imu-average N] [--sigma-deg S]`` (``--imu-average 2`` for
 PX4 flights, as the benchmark's estimator ran; 1 for ArduCopter).
