@@ -51,7 +51,7 @@ class Obstacles:
 
     @classmethod
     def from_buildings(cls, buildings: Sequence[Any], margin_m: float = 3.0) -> Obstacles:
-        """From the world's building configs (:mod:`sitl.world.urban.config`: ``footprint()``, ``height_m``)."""
+        """From the world's building configs (:mod:`urbanflow.config`: ``footprint()``, ``height_m``)."""
         return cls([Building(np.asarray(b.footprint(), dtype=float), float(b.height_m), getattr(b, "name", ""))
                     for b in buildings], margin_m)  # fmt: skip
 
