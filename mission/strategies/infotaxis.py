@@ -72,6 +72,11 @@ ALTITUDE_TAU_S = 2.0
 #: Score bonus of continuing the current heading (fraction): keeps the vehicle from dithering
 #: between moves of nearly equal value.
 KEEP_HEADING_BONUS = 0.1
+#: Urban model: a chosen goal is flown to (around the buildings) for up to GOAL_COMMIT_S [s] or
+#: until within GOAL_REACHED_M [m] before the next move choice (development seed 101 of paper-s4: a
+#: choice every bin dithered between two points 6 m either side of the vehicle for 240 s).
+GOAL_COMMIT_S = 4.0
+GOAL_REACHED_M = 1.5
 #: Redrawn particles weighed against the reading history per free tick (``SourcePosterior.weigh_step``):
 #: about 3 ms of CPU with 600 readings (300 s). The cost is particles x readings, so past
 #: ``WEIGH_BUDGET`` readings-particles the tick weighs fewer: a mission longer than 300 s keeps the
@@ -168,6 +173,8 @@ class Infotaxis(BaseStrategy):
             self.obstacles, p.urban_cell_m, p.urban_path_step_m, p.urban_path_length_m, p.urban_stall,
             p.urban_mix_rate, p.urban_probe_above_m, p.urban_probe_s)
         self.inflow: np.ndarray | None = None
+        self.goal: np.ndarray | None = None  # the point the last move choice aims at (urban model)
+        self._goal_t = -math.inf
 
     # ------------------------------------------------------------------ wind
     def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
@@ -237,8 +244,8 @@ class Infotaxis(BaseStrategy):
         self._plan_due = False
         if obs.chem_new and self._add_reading(obs, hit, downwind, speed):
             self._plan_due = True
-        elif not replan:  # a tick without a posterior update or a move choice
-            self.post.weigh_step(weigh_count(len(self.post.history)))
+        elif not replan:  # a tick without a posterior update or a move choice (an urban reading costs 2)
+            self.post.weigh_step(weigh_count(len(self.post.history) * (1 if self.city is None else 2)))
         if self.post.version != self._disc_at:  # the posterior only changes with a bin
             self._disc_at = self.post.version
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
@@ -323,6 +330,10 @@ class Infotaxis(BaseStrategy):
         ``plan_horizon_m``."""
         p = self.p
         pos = obs.position_ned[0:2]
+        if (self.city is not None and self.goal is not None and obs.t - self._goal_t < GOAL_COMMIT_S
+                and float(np.hypot(*(self.goal - pos))) > GOAL_REACHED_M):  # on the way to the last goal
+            self.heading = self.city.heading_to(pos, self.goal, p.altitude_m)
+            return
         k_dirs, n_pts = int(p.plan_directions), int(p.plan_points)
         h0 = heading_of(pos - self.start[0:2]) if self.heading is None else self.heading
         headings = h0 + 2.0 * math.pi * np.arange(k_dirs) / k_dirs
@@ -347,7 +358,8 @@ class Infotaxis(BaseStrategy):
             self.heading = heading_of(self.start[0:2] - pos)
         elif self.city is not None:  # toward the best reading of that move, around the buildings
             j = k * n_pts + int(np.argmax(info[k * n_pts:(k + 1) * n_pts]))
-            self.heading = self.city.heading_to(pos, np.array([cx[j], cy[j]]), p.altitude_m)
+            self.goal, self._goal_t = np.array([cx[j], cy[j]]), obs.t
+            self.heading = self.city.heading_to(pos, self.goal, p.altitude_m)
         else:
             self.heading = float((headings[k] + math.pi) % (2.0 * math.pi) - math.pi)
         self.last_info = float(score[k]) if math.isfinite(score[k]) else 0.0

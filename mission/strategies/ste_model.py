@@ -74,6 +74,8 @@ N_CONSTS = 13
 MTH2 = _MTH2
 #: Index of the floor ``eps`` of P(hit) and P(miss) in the constant vector.
 EPS = _EPS
+#: Indices of the crosswind Briggs coefficient a_y, the source size r0^2 [m^2] and sigma_up^2 [m^2].
+AY, R02, SUP2 = _AY, _R02, _SUP2
 
 
 def model_constants(stability: str, source_radius_m: float, intermittency_length_m: float,

@@ -12,15 +12,17 @@ spread that grows with travel. Our form is Lagrangian and cheap (a centreline in
 adjoint advection-diffusion solve):
 
 - **Backward path** (:func:`backward_paths`): from the reading's position, steps of ``step`` m
-  along the reversed mean wind -V/|V| of the horizontal slice at the flight altitude, up to
-  ``length`` m; per point (north, east) [m], travel distance s [m], travel time tau [s] (s over
-  the local speed, floored at ``SPEED_FLOOR`` x the inflow speed) and the distance travelled in
-  "mixing" air. Where the mean flow gives no upwind direction -- slower than ``stall`` x the
-  inflow speed, or reversed so that following it backward would lead *downwind* (a lee cavity,
-  a courtyard's recirculation) -- the path goes straight along the inflow's upwind direction and
-  that distance counts as mixing: there the mean flow carries nothing from a definite direction,
-  material is mixed through the recirculating volume (the cavity is a well-mixed box in the
-  building-wake models Keats et al. build on). A step along the flow into a building slides
+  along the reversed mean wind -V/|V| of the horizontal slice at the flight altitude (in a
+  recirculation too: inside a courtyard's cavity the air near the ground flows toward the
+  upwind wall, and a reading between the source and that wall came from the source behind it),
+  up to ``length`` m; per point (north, east) [m], travel distance s [m], travel time tau [s] (s
+  over the local speed, floored at ``SPEED_FLOOR`` x the inflow speed) and the distance
+  travelled in "mixing" air. Where the mean flow stalls -- slower than ``stall`` x the inflow
+  speed: the backward paths converge on a cavity's stagnation line and cannot enter it -- the
+  path goes on straight along the inflow's upwind direction through the recirculating
+  volume, and that distance counts as mixing (the cavity is a well-mixed box in the
+  building-wake models Keats et al. build on), until the reversed flow leads upwind again
+  (within acos ``REJOIN``). A step along the flow into a building slides
   along it (the next free direction within +-90 deg); a mixing step into one ends the path.
 - **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
@@ -54,12 +56,28 @@ import math
 import numpy as np
 from numba import njit
 
-from mission.strategies.ste_model import EPS, binary_entropy, mean_plume_prob, plume_frame, weigh_particle
+from mission.strategies.ste_model import (
+    AY,
+    EPS,
+    MTH2,
+    R02,
+    SUP2,
+    binary_entropy,
+    mean_plume_prob,
+    plume_frame,
+    weigh_particle,
+)
 from mission.strategies.ste_urban_field import UrbanPlane
 
 #: Columns of a path point: north, east [m], travel distance s [m], travel time tau [s], mixing distance [m].
 P_N, P_E, P_S, P_T, P_MIX = range(5)
 PATH_COLS = 5
+#: The closest path point is sought among every COARSE-th point first, then about the best of them.
+COARSE = 4
+#: Sources further off a candidate's path than this many (bounding) plume sigmas count as eps.
+FAR_SIGMAS = 6.0
+#: A mixing path follows the mean flow again once its reverse leads upwind within acos(REJOIN).
+REJOIN = 0.5
 #: Travel time uses the local speed floored at this share of the inflow speed.
 SPEED_FLOOR = 0.2
 #: The plume's wind speed s / tau is floored at this share of the inflow speed (a plume through
@@ -106,12 +124,15 @@ def _one_path(px: float, py: float, gp: np.ndarray, un: np.ndarray, ue: np.ndarr
     n, e, s, tau, mix = px, py, 0.0, 0.0, 0.0
     out[0, P_N], out[0, P_E], out[0, P_S], out[0, P_T], out[0, P_MIX] = n, e, 0.0, 0.0, 0.0
     k = 1
+    mixing = False
     while k < out.shape[0]:
         vn, ve = _velocity(gp, un, ue, n, e)
         sp = math.sqrt(vn * vn + ve * ve)
-        dn, de, mixing = upn, upe, True
-        if sp > stall * u0 and -(vn * upn + ve * upe) > 0.0:
-            dn, de, mixing = -vn / sp, -ve / sp, False
+        if sp <= stall * u0:
+            mixing = True
+        elif mixing and -(vn * upn + ve * upe) > REJOIN * sp:
+            mixing = False
+        dn, de = (upn, upe) if mixing else (-vn / sp, -ve / sp)
         if is_solid(gp, solid, n + step * dn, e + step * de):
             if mixing:  # the recirculating air ends at the wall
                 break
@@ -149,7 +170,8 @@ def backward_paths(px: np.ndarray, py: np.ndarray, gp: np.ndarray, un: np.ndarra
 def _on_segment(path: np.ndarray, k: int, sn: float, se: float, lo_open: bool, hi_open: bool
                 ) -> tuple[float, float, float]:
     """(squared distance, t, signed distance) of (sn, se) to segment k of ``path`` (t in [0, 1],
-    below 0 when ``lo_open``, above 1 when ``hi_open``)."""
+    below 0 when ``lo_open``, above 1 when ``hi_open``; the distance is to the clamped point, its
+    sign the side of the segment)."""
     an, ae = path[k, P_N], path[k, P_E]
     ln, le = path[k + 1, P_N] - an, path[k + 1, P_E] - ae
     dn, de = sn - an, se - ae
@@ -162,7 +184,8 @@ def _on_segment(path: np.ndarray, k: int, sn: float, se: float, lo_open: bool, h
     if t > 1.0 and not hi_open:
         t = 1.0
     rn, re = dn - t * ln, de - t * le
-    return rn * rn + re * re, t, (ln * de - le * dn) / math.sqrt(l2)
+    r2 = rn * rn + re * re
+    return r2, t, math.copysign(math.sqrt(r2), ln * de - le * dn)
 
 
 @njit(cache=True, inline="always")
@@ -170,21 +193,30 @@ def path_frame(path: np.ndarray, k_len: int, sn: float, se: float, upn: float, u
                ) -> tuple[float, float, float, float]:
     """A source at (sn, se) [m] in the frame of a backward path of ``k_len`` points: (x = travel
     distance to its closest point [m], y = signed distance from the path [m], travel time there
-    [s], mixing distance there [m]). The closest path point is found first, then the closest point
-    on its two segments; before the first and after the last point the path is extended straight
+    [s], mixing distance there [m]). The closest path point is found first (coarse to fine: a
+    path is smooth on the scale of ``COARSE`` steps), then the closest point on its two segments;
+    before the first point, and after the last of a path that was not stopped by a wall (``k_len``
+    = its full length), the path is extended straight
     (a one-point path along the upwind direction (upn, upe))."""
     if k_len < 2:
         dn, de = sn - path[0, P_N], se - path[0, P_E]
         return dn * upn + de * upe, dn * upe - de * upn, 0.0, 0.0
     best = np.inf
-    kb = 0
-    for k in range(k_len):
+    kc = 0
+    for k in range(0, k_len, COARSE):  # every COARSE-th point, then the points about the best of them
+        dn, de = sn - path[k, P_N], se - path[k, P_E]
+        d2 = dn * dn + de * de
+        if d2 < best:
+            best, kc = d2, k
+    kb = kc
+    for k in range(max(kc - COARSE + 1, 0), min(kc + COARSE, k_len)):
         dn, de = sn - path[k, P_N], se - path[k, P_E]
         d2 = dn * dn + de * de
         if d2 < best:
             best, kb = d2, k
     kk = min(kb, k_len - 2)
-    d2, tt, yy = _on_segment(path, kk, sn, se, kk == 0, kk == k_len - 2)
+    open_end = k_len == path.shape[0]  # a path that ended early met a wall: nothing beyond it
+    d2, tt, yy = _on_segment(path, kk, sn, se, kk == 0, kk == k_len - 2 and open_end)
     if kb > 0 and kb < k_len - 1:
         d2b, tb, yb = _on_segment(path, kb - 1, sn, se, kb - 1 == 0, False)
         if d2b < d2:
@@ -210,6 +242,21 @@ def _frame(path: np.ndarray, k_len: int, sn: float, se: float, cd: float, sd: fl
         cpk *= math.sqrt(si2 / (si2 + extra))
         si2 += extra
     return y, g, cpk, sm, si2
+
+
+@njit(cache=True, inline="always")
+def _near(path: np.ndarray, k_len: int, sn: float, se: float, cd: float, sd: float, gp: np.ndarray,
+          mix_rate: float, mc: np.ndarray) -> bool:
+    """False when the source is more than ``FAR_SIGMAS`` of an upper bound of the mean plume's
+    crosswind sigma (a_y x, the meander, r0 and the mixing spread) off the path, or that many
+    sigma_up behind the sensor: its P(hit) is then eps to within 1e-7 (for the move choice only)."""
+    x0, y0, _, mix = path_frame(path, k_len, sn, se, gp[5], gp[6])
+    x = x0 * cd + y0 * sd
+    y = -x0 * sd + y0 * cd
+    if x < -FAR_SIGMAS * math.sqrt(mc[SUP2]):
+        return False
+    s2 = (mc[AY] * mc[AY] + mc[MTH2]) * x * x + mc[R02] + (mix_rate * mix) ** 2 + 1.0
+    return y * y < FAR_SIGMAS * FAR_SIGMAS * s2
 
 
 @njit(cache=True)
@@ -240,8 +287,9 @@ def expected_information_urban(paths: np.ndarray, lens: np.ndarray, pz: float, n
         pbar = 0.0
         hbar = 0.0
         for i in range(m):
-            p = mc[EPS]  # a source inside a building gives nothing
-            if not is_solid(gp, solid, n[i], e[i]):
+            p = mc[EPS]  # a source inside a building, or far from the path, gives nothing
+            if not is_solid(gp, solid, n[i], e[i]) and _near(paths[k], lens[k], n[i], e[i], cd[i], sd[i], gp,
+                                                             mix_rate, mc):
                 y, g, cpk, sm, si2 = _frame(paths[k], lens[k], n[i], e[i], cd[i], sd[i], pz, h[i], q[i], gp,
                                             mix_rate, mc)
                 p = mean_plume_prob(y, g, cpk, sm, si2, mc)
