@@ -136,10 +136,14 @@ class Infotaxis(BaseStrategy):
         self.obstacles = obstacles
 
     def pop_messages(self) -> list[str]:
-        """Lines for the mission log since the last call (the urban model's state)."""
-        if self.city is None:
-            return []
-        out, self.city.messages = self.city.messages, []
+        """Lines for the mission log since the last call (the urban model's state, bad readings)."""
+        out: list[str] = []
+        bad = getattr(getattr(self, "memory", None), "bad_readings", 0)
+        if bad and not getattr(self, "_bad_said", False):
+            self._bad_said = True
+            out.append(f"{bad} detection(s) with a NaN or negative concentration ignored (counted as no reading)")
+        if self.city is not None:
+            out, self.city.messages = out + self.city.messages, []
         return out
 
     def reset(self, start_ned: np.ndarray, params: InfotaxisParams, seed: int = 0) -> None:  # type: ignore[override]
