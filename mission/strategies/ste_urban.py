@@ -12,17 +12,17 @@ spread that grows with travel. Our form is Lagrangian and cheap (a centreline in
 adjoint advection-diffusion solve):
 
 - **Backward path** (:func:`backward_paths`): from the reading's position, steps of ``step`` m
-  along the reversed mean wind -V/|V| of the horizontal slice at the flight altitude (in a
-  recirculation too: inside a courtyard's cavity the air near the ground flows toward the
-  upwind wall, and a reading between the source and that wall came from the source behind it),
-  up to ``length`` m; per point (north, east) [m], travel distance s [m], travel time tau [s] (s
-  over the local speed, floored at ``SPEED_FLOOR`` x the inflow speed) and the distance
-  travelled in "mixing" air. Where the mean flow stalls -- slower than ``stall`` x the inflow
-  speed: the backward paths converge on a cavity's stagnation line and cannot enter it -- the
-  path goes on straight along the inflow's upwind direction through the recirculating
-  volume, and that distance counts as mixing (the cavity is a well-mixed box in the
-  building-wake models Keats et al. build on), until the reversed flow leads upwind again
-  (within acos ``REJOIN``). A step along the flow into a building slides
+  along the reversed mean wind -V/|V| of the horizontal slice at the flight altitude, up to
+  ``length`` m; per point (north, east) [m], travel distance s [m], travel time tau [s] (s over
+  the local speed, floored at ``SPEED_FLOOR`` x the inflow speed) and the distance travelled in
+  "mixing" air. Where the mean flow gives no upwind direction -- slower than ``stall`` x the
+  inflow speed (the backward paths converge on a cavity's stagnation line and cannot enter it),
+  or reversed so that following it backward would lead *downwind* (a lee cavity, a courtyard's
+  recirculation) -- the path goes straight along the inflow's upwind direction and that distance
+  counts as mixing: material is mixed through the recirculating volume (the cavity is a
+  well-mixed box in the building-wake models Keats et al. build on). Following the reversed flow
+  inside a recirculation instead was tried (development seeds 100-109 of paper-s4: 4 of 10
+  within 3 m against 6, a declaration 93 m off: paths circling in a lee vortex). A step along the flow into a building slides
   along it (the next free direction within +-90 deg); a mixing step into one ends the path.
 - **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
@@ -76,8 +76,6 @@ PATH_COLS = 5
 COARSE = 4
 #: Sources further off a candidate's path than this many (bounding) plume sigmas count as eps.
 FAR_SIGMAS = 6.0
-#: A mixing path follows the mean flow again once its reverse leads upwind within acos(REJOIN).
-REJOIN = 0.5
 #: Travel time uses the local speed floored at this share of the inflow speed.
 SPEED_FLOOR = 0.2
 #: The plume's wind speed s / tau is floored at this share of the inflow speed (a plume through
@@ -124,15 +122,12 @@ def _one_path(px: float, py: float, gp: np.ndarray, un: np.ndarray, ue: np.ndarr
     n, e, s, tau, mix = px, py, 0.0, 0.0, 0.0
     out[0, P_N], out[0, P_E], out[0, P_S], out[0, P_T], out[0, P_MIX] = n, e, 0.0, 0.0, 0.0
     k = 1
-    mixing = False
     while k < out.shape[0]:
         vn, ve = _velocity(gp, un, ue, n, e)
         sp = math.sqrt(vn * vn + ve * ve)
-        if sp <= stall * u0:
-            mixing = True
-        elif mixing and -(vn * upn + ve * upe) > REJOIN * sp:
-            mixing = False
-        dn, de = (upn, upe) if mixing else (-vn / sp, -ve / sp)
+        dn, de, mixing = upn, upe, True
+        if sp > stall * u0 and -(vn * upn + ve * upe) > 0.0:
+            dn, de, mixing = -vn / sp, -ve / sp, False
         if is_solid(gp, solid, n + step * dn, e + step * de):
             if mixing:  # the recirculating air ends at the wall
                 break
