@@ -22,8 +22,9 @@ adjoint advection-diffusion solve):
   counts as mixing: material is mixed through the recirculating volume (the cavity is a
   well-mixed box in the building-wake models Keats et al. build on). Following the reversed flow
   inside a recirculation instead was tried (development seeds 100-109 of paper-s4: 4 of 10
-  within 3 m against 6, a declaration 93 m off: paths circling in a lee vortex). A step along the flow into a building slides
-  along it (the next free direction within +-90 deg); a mixing step into one ends the path.
+  within 3 m against 6, a declaration 93 m off: paths circling in a lee vortex). A step along
+  the flow into a building slides along it (the next free direction within +-90 deg); a mixing
+  step into one ends the path.
 - **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
   point on the path (beyond the ends the path is extended straight), y = its signed distance
