@@ -20,11 +20,13 @@ adjoint advection-diffusion solve):
   or reversed so that following it backward would lead *downwind* (a lee cavity, a courtyard's
   recirculation) -- the path goes straight along the inflow's upwind direction and that distance
   counts as mixing: material is mixed through the recirculating volume (the cavity is a
-  well-mixed box in the building-wake models Keats et al. build on). Following the reversed flow
-  inside a recirculation instead was tried (development seeds 100-109 of paper-s4: 4 of 10
-  within 3 m against 6, a declaration 93 m off: paths circling in a lee vortex). A step along
-  the flow into a building slides along it (the next free direction within +-90 deg); a mixing
-  step into one ends the path.
+  well-mixed box in the building-wake models Keats et al. build on). A step into a building
+  slides along it (the next free direction within +-90 deg that does not turn back), round the
+  building: material reaches a lee from around it. Only a closed corner ends a path, and nothing
+  lies beyond its end. Tried and dropped on development seeds 100-109 (paper-s4: 6 of 10 within
+  3 m with the rules above): following the reversed flow inside a recirculation (4 of 10, paths
+  circling in a lee vortex) and ending a mixing path at the first wall (4 of 10, declarations in
+  a lee next to the wall, 93 m off; in paper-s4-wind90 in block-5's lee, 56 m off).
 - **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
   point on the path (beyond the ends the path is extended straight), y = its signed distance
@@ -123,6 +125,7 @@ def _one_path(px: float, py: float, gp: np.ndarray, un: np.ndarray, ue: np.ndarr
     n, e, s, tau, mix = px, py, 0.0, 0.0, 0.0
     out[0, P_N], out[0, P_E], out[0, P_S], out[0, P_T], out[0, P_MIX] = n, e, 0.0, 0.0, 0.0
     k = 1
+    pn, pe = upn, upe  # the previous step's direction
     while k < out.shape[0]:
         vn, ve = _velocity(gp, un, ue, n, e)
         sp = math.sqrt(vn * vn + ve * ve)
@@ -130,17 +133,16 @@ def _one_path(px: float, py: float, gp: np.ndarray, un: np.ndarray, ue: np.ndarr
         if sp > stall * u0 and -(vn * upn + ve * upe) > 0.0:
             dn, de, mixing = -vn / sp, -ve / sp, False
         if is_solid(gp, solid, n + step * dn, e + step * de):
-            if mixing:  # the recirculating air ends at the wall
-                break
             free = False
             for ang in _SLIDES:
                 c, sn = math.cos(ang), math.sin(ang)
                 tn, te = dn * c - de * sn, dn * sn + de * c
-                if not is_solid(gp, solid, n + step * tn, e + step * te):
+                if tn * pn + te * pe > -0.1 and not is_solid(gp, solid, n + step * tn, e + step * te):
                     dn, de, free = tn, te, True
                     break
-            if not free:
+            if not free:  # a closed corner: no way on without turning back
                 break
+        pn, pe = dn, de
         n += step * dn
         e += step * de
         s += step
