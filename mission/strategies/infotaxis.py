@@ -374,7 +374,8 @@ class Infotaxis(BaseStrategy):
         ``declare_radius_m``, held for ``declare_hold_s`` [s] with the centre within
         ``declare_radius_m`` of where it first was."""
         p = self.p
-        if self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m or self.model_unusable:
+        if (self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m or self.model_unusable
+                or (self.city is not None and p.urban_decline_dead_air and not self.city.usable_at(center))):
             self._sure_since = math.nan
             return False
         if math.isnan(self._sure_since) or float(np.hypot(*(center - self._sure_at))) > p.declare_radius_m:

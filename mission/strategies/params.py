@@ -231,6 +231,8 @@ class InfotaxisParams(CommonParams):
     urban_probe_above_m: float = _p(10.0, 0.0, 100.0, "urban model: the inflow is measured this far above the "
                                     "tallest known roof, over the start, before the search [m]")
     urban_probe_s: float = _p(8.0, 0.5, 120.0, "urban model: the inflow is the estimated wind averaged this long [s]")
+    urban_decline_dead_air: int = _p(0, 0, 1, "urban model: 1 = no declaration at a point in stalled or reversed air "
+                                     "at the flight altitude (a lee, a courtyard, a windward face)")
     urban_mix_rate: float = _p(0.15, 0.0, 5.0, "urban model: crosswind sigma added per metre of path through mixing "
                                "air [m/m]")
 

@@ -34,7 +34,7 @@ import shapely
 from mission.obstacles import Obstacles
 from mission.routing import Router
 from mission.strategies.base import heading_of
-from mission.strategies.ste_urban import UrbanModel
+from mission.strategies.ste_urban import UrbanModel, flow_at
 from mission.strategies.ste_urban_field import UrbanModelError, build_plane
 
 #: Readings inside a building's footprint after which the urban model is dropped (layout mismatch).
@@ -59,6 +59,7 @@ class CitySupport:
         self.model: UrbanModel | None = None
         self.solve_s = math.nan
         self.dropped = False
+        self._dead_said = False
 
     def say(self, line: str) -> None:
         self.messages.append(line)
@@ -96,6 +97,22 @@ class CitySupport:
                  f"N {w[0]:.2f} E {w[1]:.2f} m/s in {self.solve_s:.2f} s CPU")
         self.model = UrbanModel(plane, step, length, stall, mix)
         return self.model
+
+    def usable_at(self, point: np.ndarray) -> bool:
+        """Whether the urban model can place a source at ``point`` (north, east) [m]: not in air that is
+        stalled (slower than the model's stall share of the inflow) or reversed at the flight altitude
+        -- a lee, a courtyard, a windward face -- where every backward path through it crosses
+        straight as mixing air and cannot tell a source there from one at the wall (said once)."""
+        if self.model is None:
+            return True
+        gp, un, ue, _ = self.model.plane.args()
+        vn, ve = flow_at(gp, un, ue, float(point[0]), float(point[1]))
+        ok = math.hypot(vn, ve) > self.model.stall * gp[7] and -(vn * gp[5] + ve * gp[6]) > 0.0
+        if not ok and not self._dead_said:
+            self._dead_said = True
+            self.say(f"declaration withheld: the candidate at N {point[0]:.1f} E {point[1]:.1f} m lies in stalled or "
+                     "reversed air, where the urban model cannot place a source")
+        return ok
 
     def check_position(self, n_fallback: int) -> bool:
         """After a reading: False once ``MISMATCH_READINGS`` readings were inside a building (the

@@ -107,6 +107,12 @@ def _velocity(gp: np.ndarray, un: np.ndarray, ue: np.ndarray, n: float, e: float
     return vn, ve
 
 
+@njit(cache=True)
+def flow_at(gp: np.ndarray, un: np.ndarray, ue: np.ndarray, n: float, e: float) -> tuple[float, float]:
+    """The slice's mean wind (north, east) [m/s] at (n, e) [m] (for the strategy's checks)."""
+    return _velocity(gp, un, ue, n, e)
+
+
 @njit(cache=True, inline="always")
 def is_solid(gp: np.ndarray, solid: np.ndarray, n: float, e: float) -> bool:
     """Whether (n, e) [m] is inside a building at the flight altitude (nearest slice corner)."""
