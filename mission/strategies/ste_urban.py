@@ -23,10 +23,10 @@ adjoint advection-diffusion solve):
   well-mixed box in the building-wake models Keats et al. build on). A step into a building
   slides along it (the next free direction within +-90 deg that does not turn back), round the
   building: material reaches a lee from around it. Only a closed corner ends a path, and nothing
-  lies beyond its end. Tried and dropped on development seeds 100-109 (paper-s4: 6 of 10 within
-  3 m with the rules above): following the reversed flow inside a recirculation (4 of 10, paths
-  circling in a lee vortex) and ending a mixing path at the first wall (4 of 10, declarations in
-  a lee next to the wall, 93 m off; in paper-s4-wind90 in block-5's lee, 56 m off).
+  lies beyond its end. Tried and dropped on development seeds 100-109 of paper-s4 (8 of 10
+  within 3 m with the rules above): following the reversed flow inside a recirculation together
+  with ending a mixing path at the first wall (one run with both: 4 of 10, a declaration at a
+  wall 93 m off; in paper-s4-wind90 declarations in block-5's lee, 56 m off).
 - **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
   point on the path (beyond the ends the path is extended straight), y = its signed distance
