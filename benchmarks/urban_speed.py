@@ -47,9 +47,9 @@ from sitl.world.urban import (  # noqa: E402
     urban_wind_mean,
     urban_wind_mean_many,
 )
-from sitl.world.urban.geometry import BuildingArrays, voxelize  # noqa: E402
-from sitl.world.urban.initial_field import initial_field  # noqa: E402
-from sitl.world.urban.solver import _poisson_matrix, divergence, zero_solid_faces  # noqa: E402
+from urbanflow.geometry import BuildingArrays, voxelize  # noqa: E402
+from urbanflow.initial_field import initial_field  # noqa: E402
+from urbanflow.solver import _poisson_matrix, divergence, zero_solid_faces  # noqa: E402
 
 SEED = 1000
 N_POINTS = 1_000_000

@@ -30,9 +30,9 @@ from sitl.world.urban import (
     solve_urban_wind,
     street_canyon_scene,
 )
-from sitl.world.urban.geometry import BuildingArrays, voxelize
-from sitl.world.urban.initial_field import initial_field
-from sitl.world.urban.solver import divergence, zero_solid_faces
+from urbanflow.geometry import BuildingArrays, voxelize
+from urbanflow.initial_field import initial_field
+from urbanflow.solver import divergence, zero_solid_faces
 
 MT93_REATTACHMENT_H = 1.61  # Martinuzzi & Tropea (1993), cube in a channel, Re_H = 40,000
 

@@ -145,6 +145,9 @@ class MissionLoop:
         alt = self.sup.altitude_target(self.params.altitude_m)
         if alt != self.params.altitude_m:
             self.say(f"SAFETY: search altitude {self.params.altitude_m:g} m clamped to {alt:g} m by the limits")
+        set_obstacles = getattr(self.strategy, "set_obstacles", None)
+        if set_obstacles is not None:  # a strategy that plans with the buildings (infotaxis' urban model)
+            set_obstacles(self.obstacles)
         self.strategy.reset(home, self.params, seed=self.seed)
         try:
             await self.v.arm()
@@ -282,6 +285,8 @@ class MissionLoop:
                           chem_t=st.chem_t)  # fmt: skip
         sp = self.strategy.update(obs)
         res.ticks += 1
+        for line in getattr(self.strategy, "pop_messages", list)():
+            self.say(f"strategy: {line}")
         if sp.declared_source_ned is not None and res.declared_ned is None:
             res.declared_ned = [round(float(v), 3) for v in sp.declared_source_ned]
             res.confidence = round(float(sp.confidence), 3)

@@ -7,8 +7,9 @@ its roof plus a margin) is moved back along that path to stay ``margin_m`` clear
 also uploads the footprints to the autopilot as geofence exclusion polygons (as a user would with
 PX4), so the autopilot's own fence backs the supervisor up.
 
-Built from a scenario's ``[urban]`` buildings (:meth:`Obstacles.from_scenario_file` /
-:meth:`Obstacles.from_buildings`) with shapely (2-D geometry). Units SI, NED; altitudes above home.
+Built from a scenario's ``[urban]`` buildings (:meth:`Obstacles.from_buildings`; the runners read the
+file, :class:`mission.runners.fence.SiteBuildings`) with shapely (2-D geometry); the module needs no
+simulator, so a strategy may plan with it. Units SI, NED; altitudes above home.
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -51,7 +51,7 @@ class Obstacles:
 
     @classmethod
     def from_buildings(cls, buildings: Sequence[Any], margin_m: float = 3.0) -> Obstacles:
-        """From the world's building configs (:mod:`sitl.world.urban.config`: ``footprint()``, ``height_m``)."""
+        """From the world's building configs (:mod:`urbanflow.config`: ``footprint()``, ``height_m``)."""
         return cls([Building(np.asarray(b.footprint(), dtype=float), float(b.height_m), getattr(b, "name", ""))
                     for b in buildings], margin_m)  # fmt: skip
 
@@ -60,16 +60,6 @@ class Obstacles:
         local frame whose origin lies elsewhere (PX4 puts its origin where its estimator started)."""
         d = np.array([north_m, east_m], dtype=float)
         return Obstacles([Building(b.footprint + d, b.height_m, b.name) for b in self.buildings], self.margin_m)
-
-    @classmethod
-    def from_scenario_file(cls, path: str | Path, margin_m: float = 3.0) -> Obstacles:
-        """The buildings of a scenario file's ``[urban]`` table (ValueError: no such table)."""
-        from sitl.scenario import load_scenario
-
-        sc = load_scenario(str(path))
-        if sc.urban is None or not sc.urban.buildings:
-            raise ValueError(f"{path}: the scenario has no [urban] buildings")
-        return cls.from_buildings(sc.urban.buildings, margin_m)
 
     def _blocking(self, altitude_m: float) -> list[int]:
         """Buildings a vehicle at ``altitude_m`` above home could hit (roof + margin above it)."""

@@ -33,8 +33,8 @@ from sitl.world.sensors import (
     TemperatureConfig,
 )
 from sitl.world.spec import Start, WorldSpec
-from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import KaimalTurbulence, SteadyWind
+from urbanflow.config import UrbanScene
 from vehicle.geomag import earth_field_ned_gauss
 
 
@@ -295,7 +295,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<dict>") -> Scenario:
 
 def _check_clear_of_buildings(urban: UrbanScene, start: Start, plume: PlumeSetup | None) -> None:
     """ScenarioError naming the field when the start or a plume source lies inside a building."""
-    from sitl.world.urban.geometry import BuildingArrays, building_at
+    from urbanflow.geometry import BuildingArrays, building_at
 
     arrays = BuildingArrays.from_buildings(urban.buildings)
     points = [("start.position_ned", start.position_ned)]

@@ -10,8 +10,8 @@ import math
 from typing import Any
 
 from sitl.parsing import ScenarioError, boolean, number, table, vec3
-from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import WIND_MODELS, KaimalTurbulence, SteadyWind, WindChange, velocity_from_speed_direction
+from urbanflow.config import UrbanScene
 from vehicle.frames import from_direction_deg
 
 TURBULENCE_LEVELS = {"none": 0.0, "low": 0.5, "moderate": 1.0, "high": 2.0}
@@ -92,8 +92,8 @@ def parse_wind_model(tbl: dict[str, Any]) -> tuple[str, tuple[tuple[str, Any], .
 def parse_urban(tbl: Any, wind: SteadyWind, wind_model: str) -> UrbanScene:
     """``[urban]``: buildings, the wind grid, options; the upstream profile is the scenario's ``[wind]``
     (one source of truth: a log profile, no schedule, since the solved field is steady)."""
-    from sitl.world.urban.config import ConfigError
     from sitl.world.urban.parse import parse_urban_scene
+    from urbanflow.config import ConfigError
 
     t = table("urban", tbl, {"buildings", "grid", "options", "name"})
     if wind_model not in ("steady", "urban"):

@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("sitl", "vehicle", "wire", "estimator", "mission", "recording", "review", "windseek", "identify",
-            "toolchain")
+            "toolchain", "urbanflow")
 GENERATED = {"wire/dialect/windseek.py"}
 MAX_LINES = 450
 
@@ -39,6 +39,8 @@ FORBIDDEN = [
     ("sitl", "windseek"),
     ("estimator", "windseek"),
     ("toolchain", "sitl"),  # the numba cache set-up sits below every layer
+    ("urbanflow", "sitl"),  # the urban wind field is a pure computation below the world and the mission
+    ("urbanflow", "mission"),
     ("identify", "sitl"),  # the identification runs on any flight's data; only its in-process adapter flies
 ]
 #: (importer prefix, imported prefix) -> importers under these prefixes may: the adapters that fill the

@@ -24,7 +24,7 @@ from sitl.world.urban import (
     street_canyon_scene,
     urban_wind_mean,
 )
-from sitl.world.urban.parameterizations import ZONE_CAVITY, ZONE_ROOFTOP, ZONE_UPWIND_VORTEX, ZONE_WAKE
+from urbanflow.parameterizations import ZONE_CAVITY, ZONE_ROOFTOP, ZONE_UPWIND_VORTEX, ZONE_WAKE
 
 H = 6.0  # small cube: 66 x 42 x 24 cells of 1 m
 DIV_BOUND = 1e-3  # max |div| in units of U_ref / dx

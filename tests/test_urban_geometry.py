@@ -7,7 +7,7 @@ import pytest
 from numba import njit
 
 from sitl.world.urban import BoxBuilding, BuildingArrays, PolygonBuilding, building_at, inside_many, reflect_many
-from sitl.world.urban.geometry import voxelize
+from urbanflow.geometry import voxelize
 
 # A 10 x 10 m box (north 0..10, east 0..10, 8 m tall), an L-shaped (concave) polygon and a box
 # rotated 45 deg centred at (50, 50).

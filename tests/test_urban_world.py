@@ -80,7 +80,7 @@ def test_paper_s4_layout_is_what_its_file_says() -> None:
     """The reconstructed Scenario 4 (assumed layout, see the file): start downwind of the source,
     six buildings between them, neither the start nor the source inside a building."""
     from sitl.scenario import load_scenario
-    from sitl.world.urban.geometry import BuildingArrays, inside_many
+    from urbanflow.geometry import BuildingArrays, inside_many
 
     sc = load_scenario("paper-s4")
     assert sc.urban is not None and len(sc.urban.buildings) == 6 and sc.wind_model == "urban"
@@ -102,7 +102,7 @@ def test_urban_variants_keep_the_source_upwind_and_clear_of_buildings(name: str)
     """Each variant (issue 20): start and source in the air, outside every building, the source
     upwind of the start (within 20 deg of the wind's from-direction)."""
     from sitl.scenario import load_scenario
-    from sitl.world.urban.geometry import BuildingArrays, inside_many
+    from urbanflow.geometry import BuildingArrays, inside_many
 
     sc = load_scenario(name)
     assert sc.urban is not None and sc.plume is not None and sc.wind_model == "urban"

@@ -34,7 +34,7 @@ from pathlib import Path
 LOCATORS = ("toolchain.numba_locator.ProjectCacheLocator,UserProvidedCacheLocator,InTreeCacheLocator,"
             "UserWideCacheLocator,IPythonCacheLocator,ZipCacheLocator")
 #: Packages whose kernels are cached (files that mention numba).
-KERNEL_PACKAGES = ("sitl", "vehicle", "estimator", "mission")
+KERNEL_PACKAGES = ("sitl", "vehicle", "estimator", "mission", "urbanflow")
 _configured: str | None = None
 _KERNEL_TEXT = re.compile(rb"\bnumba\b")
 

@@ -35,6 +35,15 @@ reading is expected to tell the most about the source:
 Without wind (``none``): the plume direction is a posterior dimension with a uniform prior (any
 direction), the speed ``assumed_wind_m_s``; the hits themselves must then tell the direction.
 
+Among buildings (``plume_model = "urban"``, ``mission/strategy_files/urban.toml``): the likelihood
+follows backward paths through the urban diagnostic wind of the buildings the mission knows,
+solved for the estimated inflow at the first usable wind (``ste_urban``, ``ste_urban_field``);
+candidate points inside a building are no candidates and the chosen goal is reached along the
+shortest route around the buildings (``ste_city``). When the urban model cannot be had (no usable
+wind, a layout that makes no scene, readings from inside a footprint) the strategy says so,
+weighs with the open-field plume and does not declare: among buildings that plume is known to put
+the source in a lee (0 of 50 in paper-s4), a confidence from it would not be honest.
+
 Frames and units: NED, SI; headings in rad (0 = north, clockwise); heights above home.
 """
 
@@ -45,12 +54,16 @@ from dataclasses import replace
 
 import numpy as np
 
+from mission.obstacles import Obstacles
 from mission.strategies.base import Observation, Setpoint, WindInfo, heading_of, heading_vec
 from mission.strategies.common import BaseStrategy
 from mission.strategies.params import InfotaxisParams
 from mission.strategies.ste_adapt import DirectionSpread, adapted_likelihood, mismatch_factor
+from mission.strategies.ste_city import CitySupport
 from mission.strategies.ste_filter import PriorBox, SourcePosterior
 from mission.strategies.ste_model import model_constants, set_meander
+from mission.strategies.ste_urban import UrbanModel
+from mission.strategies.ste_urban_field import uniform_plane
 
 #: Time constant of the wind-speed average the plume model uses [s].
 SPEED_TAU_S = 10.0
@@ -59,6 +72,11 @@ ALTITUDE_TAU_S = 2.0
 #: Score bonus of continuing the current heading (fraction): keeps the vehicle from dithering
 #: between moves of nearly equal value.
 KEEP_HEADING_BONUS = 0.1
+#: Urban model: a chosen goal is flown to (around the buildings) for up to GOAL_COMMIT_S [s] or
+#: until within GOAL_REACHED_M [m] before the next move choice (development seed 101 of paper-s4: a
+#: choice every bin dithered between two points 6 m either side of the vehicle for 240 s).
+GOAL_COMMIT_S = 4.0
+GOAL_REACHED_M = 1.5
 #: Redrawn particles weighed against the reading history per free tick (``SourcePosterior.weigh_step``):
 #: about 3 ms of CPU with 600 readings (300 s). The cost is particles x readings, so past
 #: ``WEIGH_BUDGET`` readings-particles the tick weighs fewer: a mission longer than 300 s keeps the
@@ -94,6 +112,10 @@ def warm_kernels(params: InfotaxisParams) -> None:
     s = Infotaxis()
     s.reset(np.zeros(3), replace(params, n_particles=100, plan_particles=10, declare_hold_s=0.0), seed=0)
     wind = WindInfo(wind_ned=np.array([-4.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)
+    if params.plume_model == "urban":  # the urban kernels too, on a slice without buildings
+        s._init_prior(Observation(t=0.0, position_ned=np.zeros(3), velocity_ned=np.zeros(3), chem_mg_m3=0.0,
+                                  detected=False, chem_new=False, wind=wind))
+        s.post.set_urban(UrbanModel(uniform_plane((-4.0, 0.0), (-100.0, 100.0, -100.0, 100.0)), 3.0, 30.0))
     for k in range(40):  # hits, then misses: updates, a resampling and its weighing, moves, the disc
         c = 1.0 if (k < 30 and k % 2 == 0) else 0.0
         s.update(Observation(t=0.1 * k, position_ned=np.array([0.0, 0.0, -params.altitude_m]), velocity_ned=np.zeros(3),
@@ -106,6 +128,23 @@ class Infotaxis(BaseStrategy):
 
     name = "infotaxis"
     p: InfotaxisParams
+    obstacles: Obstacles | None = None
+    city: CitySupport | None = None
+
+    def set_obstacles(self, obstacles: Obstacles | None) -> None:
+        """The buildings the mission knows (before ``reset``): the urban model's city."""
+        self.obstacles = obstacles
+
+    def pop_messages(self) -> list[str]:
+        """Lines for the mission log since the last call (the urban model's state, bad readings)."""
+        out: list[str] = []
+        bad = getattr(getattr(self, "memory", None), "bad_readings", 0)
+        if bad and not getattr(self, "_bad_said", False):
+            self._bad_said = True
+            out.append(f"{bad} detection(s) with a NaN or negative concentration ignored (counted as no reading)")
+        if self.city is not None:
+            out, self.city.messages = out + self.city.messages, []
+        return out
 
     def reset(self, start_ned: np.ndarray, params: InfotaxisParams, seed: int = 0) -> None:  # type: ignore[override]
         warm_kernels(params)
@@ -134,6 +173,12 @@ class Infotaxis(BaseStrategy):
         self.mismatch = 1.0
         self._sure_since = math.nan
         self._sure_at = np.zeros(2)
+        self.city = None if p.plume_model != "urban" else CitySupport(
+            self.obstacles, p.urban_cell_m, p.urban_path_step_m, p.urban_path_length_m, p.urban_stall,
+            p.urban_mix_rate, p.urban_probe_above_m, p.urban_probe_s)
+        self.inflow: np.ndarray | None = None
+        self.goal: np.ndarray | None = None  # the point the last move choice aims at (urban model)
+        self._goal_t = -math.inf
 
     # ------------------------------------------------------------------ wind
     def _plume_wind(self, obs: Observation, dt: float) -> tuple[float, float] | None:
@@ -156,13 +201,20 @@ class Infotaxis(BaseStrategy):
         sigma = None
         upwind = 0.0
         if w is not None:
-            upwind = w.upwind_rad
+            upwind = w.upwind_rad if self.inflow is None else heading_of(-self.inflow)
             sigma = math.hypot(math.radians(p.direction_sigma_deg), min(w.upwind_sigma_rad, math.radians(30.0)))
         pos = obs.position_ned[0:2]
         self.post.init_prior(PriorBox(
             origin_ne=(float(pos[0]), float(pos[1])), upwind_rad=upwind, ahead=p.prior_range_m, back=p.prior_back_m,
             half_width=p.prior_half_width_m, h_range=(p.source_height_min_m, p.source_height_max_m),
             q_range=(p.release_min_g_s, p.release_max_g_s), delta_sigma=sigma))
+        if self.city is not None and self.inflow is not None:
+            self.post.set_urban(self.city.build(self.inflow, p.altitude_m))
+
+    @property
+    def model_unusable(self) -> bool:
+        """The urban model was asked for among buildings and could not be had: no declaration."""
+        return self.city is not None and self.city.obstacles is not None and self.post.urban is None
 
     # ------------------------------------------------------------------ tick
     def update(self, obs: Observation) -> Setpoint:
@@ -181,6 +233,12 @@ class Infotaxis(BaseStrategy):
         if wind is None:  # no usable wind direction yet: hold here
             return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, p.altitude_m), velocity_ned=np.zeros(3),
                             state="wait-wind")
+        if self.city is not None and self.city.obstacles is not None and self.inflow is None:
+            self.inflow = self.city.probe(obs.wind.wind_ned if obs.wind is not None else None,
+                                          float(self.start[2] - obs.position_ned[2]), dt)
+            if self.inflow is None:  # climb over the roofs and measure the inflow first
+                return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, self.city.probe_height_m),
+                                velocity_ned=np.zeros(3), state="measure-inflow")
         if not self.post.ready:
             self._init_prior(obs)
         downwind, speed = wind
@@ -190,8 +248,8 @@ class Infotaxis(BaseStrategy):
         self._plan_due = False
         if obs.chem_new and self._add_reading(obs, hit, downwind, speed):
             self._plan_due = True
-        elif not replan:  # a tick without a posterior update or a move choice
-            self.post.weigh_step(weigh_count(len(self.post.history)))
+        elif not replan:  # a tick without a posterior update or a move choice (an urban reading costs 2)
+            self.post.weigh_step(weigh_count(len(self.post.history) * (1 if self.city is None else 2)))
         if self.post.version != self._disc_at:  # the posterior only changes with a bin
             self._disc_at = self.post.version
             self._center, self.credible_radius = self.post.credible_disc(p.credible_level)
@@ -242,6 +300,8 @@ class Infotaxis(BaseStrategy):
             self.post.update(obs.t, b[1] / b[3], b[2] / b[3], self.alt, False, downwind, speed)
             self.n_misses += 1
         b.clear()
+        if self.city is not None and self.post.urban is not None and not self.city.check_position(self.post.n_fallback):
+            self.post.set_urban(None)
         return True
 
     def _adapt(self) -> None:
@@ -274,6 +334,10 @@ class Infotaxis(BaseStrategy):
         ``plan_horizon_m``."""
         p = self.p
         pos = obs.position_ned[0:2]
+        if (self.city is not None and self.goal is not None and obs.t - self._goal_t < GOAL_COMMIT_S
+                and float(np.hypot(*(self.goal - pos))) > GOAL_REACHED_M):  # on the way to the last goal
+            self.heading = self.city.heading_to(pos, self.goal, p.altitude_m)
+            return
         k_dirs, n_pts = int(p.plan_directions), int(p.plan_points)
         h0 = heading_of(pos - self.start[0:2]) if self.heading is None else self.heading
         headings = h0 + 2.0 * math.pi * np.arange(k_dirs) / k_dirs
@@ -284,6 +348,8 @@ class Infotaxis(BaseStrategy):
         cy = (pos[1] + np.outer(np.sin(headings), dist)).ravel()
         plan = self.post.planning_set(int(p.plan_particles))
         info, _ = self.post.information(cx, cy, p.altitude_m, downwind, speed, plan)
+        if self.city is not None:  # no candidate readings inside a building
+            info = np.where(self.city.free(cx, cy, p.altitude_m), info, -np.inf)
         score = info.reshape(k_dirs, n_pts).max(axis=1)
         # Moves that would leave the allowed range are not candidates.
         far = np.hypot(cx - self.start[0], cy - self.start[1]).reshape(k_dirs, n_pts)[:, -1] > p.max_range_m
@@ -294,6 +360,10 @@ class Infotaxis(BaseStrategy):
         self.last_scores = (headings, score)
         if not math.isfinite(score[k]):  # every move leaves the range: go home-ward
             self.heading = heading_of(self.start[0:2] - pos)
+        elif self.city is not None:  # toward the best reading of that move, around the buildings
+            j = k * n_pts + int(np.argmax(info[k * n_pts:(k + 1) * n_pts]))
+            self.goal, self._goal_t = np.array([cx[j], cy[j]]), obs.t
+            self.heading = self.city.heading_to(pos, self.goal, p.altitude_m)
         else:
             self.heading = float((headings[k] + math.pi) % (2.0 * math.pi) - math.pi)
         self.last_info = float(score[k]) if math.isfinite(score[k]) else 0.0
@@ -304,7 +374,8 @@ class Infotaxis(BaseStrategy):
         ``declare_radius_m``, held for ``declare_hold_s`` [s] with the centre within
         ``declare_radius_m`` of where it first was."""
         p = self.p
-        if self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m:
+        if (self.confidence < p.declare_confidence or self.credible_radius > p.declare_radius_m or self.model_unusable
+                or (self.city is not None and p.urban_decline_dead_air and not self.city.usable_at(center))):
             self._sure_since = math.nan
             return False
         if math.isnan(self._sure_since) or float(np.hypot(*(center - self._sure_at))) > p.declare_radius_m:

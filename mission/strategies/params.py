@@ -219,6 +219,22 @@ class InfotaxisParams(CommonParams):
                                "where it was when they first held [s]")
     success_radius_m: float = _p(3.0, 0.1, 100.0, "confidence = posterior probability that the source lies "
                                  "within this distance of the declared point [m]")
+    plume_model: str = _c("open", ("open", "urban"), "likelihood of a reading: 'open' the straight-line Gaussian "
+                          "plume in the filtered wind; 'urban' backward paths through the urban diagnostic wind of "
+                          "the buildings the mission knows, solved for the estimated inflow (ste_urban), with "
+                          "moves routed around the buildings (without buildings: the open plume)")
+    urban_cell_m: float = _p(4.0, 1.0, 20.0, "urban model: cell of the wind field's grid [m]")
+    urban_path_step_m: float = _p(3.0, 0.5, 20.0, "urban model: step of a backward path [m]")
+    urban_path_length_m: float = _p(240.0, 10.0, 2000.0, "urban model: length of a backward path [m]")
+    urban_stall: float = _p(0.15, 0.0, 1.0, "urban model: mean wind slower than this share of the inflow (or "
+                            "reversed) gives no direction: the path goes straight upwind through mixing air")
+    urban_probe_above_m: float = _p(10.0, 0.0, 100.0, "urban model: the inflow is measured this far above the "
+                                    "tallest known roof, over the start, before the search [m]")
+    urban_probe_s: float = _p(8.0, 0.5, 120.0, "urban model: the inflow is the estimated wind averaged this long [s]")
+    urban_decline_dead_air: int = _p(0, 0, 1, "urban model: 1 = no declaration at a point in stalled or reversed air "
+                                     "at the flight altitude (a lee, a courtyard, a windward face)")
+    urban_mix_rate: float = _p(0.15, 0.0, 5.0, "urban model: crosswind sigma added per metre of path through mixing "
+                               "air [m/m]")
 
 
 #: Fields where NaN means "not set" (documented per field).

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
@@ -56,6 +57,7 @@ class PlumeMemory:
         self._tail_value = 0.0  # the last detected reading [mg/m^3] and its time [s]: the decay tail
         self._tail_t = math.nan
         self.all_values: list[float] = []
+        self.bad_readings = 0  # detections with a NaN or negative concentration (ignored)
 
     def add(self, obs: Observation) -> bool:
         """Record the observation's reading if it is new; returns True on a new hit.
@@ -71,6 +73,9 @@ class PlumeMemory:
         """
         if not obs.chem_new:
             return False
+        if obs.detected and not (math.isfinite(obs.chem_mg_m3) and obs.chem_mg_m3 > 0.0):
+            self.bad_readings += 1  # NaN or negative: no detection (it would poison the decay tail)
+            obs = replace(obs, detected=False)
         value = obs.chem_mg_m3 if obs.detected else 0.0
         # The decay runs on the readings' own times: a tick can carry a reading older than itself
         # (the one after a lost message), and its decay measured to the tick would look like a rise.

@@ -29,6 +29,7 @@ import numpy as np
 
 from mission.strategies.ste_history import ReadingHistory
 from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes, meander_of
+from mission.strategies.ste_urban import UrbanModel, accumulate_urban, expected_information_urban, is_solid
 
 #: Resampled particles whose history likelihood sets the scale of the redrawn ones' (``weigh_step``).
 WEIGH_REFERENCE = 20
@@ -79,10 +80,17 @@ class _Cloud:
         self.w = np.full(n, 1.0 / n)
 
     def add(self, post: SourcePosterior, px: float, py: float, pz: float, hit: bool, cphi: float, sphi: float,
-            u: float) -> None:
-        """Accumulate one reading into the window and refresh the normalized weights ``w``."""
-        accumulate(self.acc, self.alpha, self.pn, self.pe, self.h, self.q, self.cd, self.sd, px, py, pz, cphi, sphi,
-                   u, hit, post.kappa, post.rho, post.nodes, post.mc)
+            u: float, path: tuple[np.ndarray, int] | None = None) -> None:
+        """Accumulate one reading into the window and refresh the normalized weights ``w``; with
+        a backward ``path`` (points, count) through the urban likelihood (``ste_urban``)."""
+        if path is not None and post.urban is not None:
+            gp, _, _, solid = post.urban.plane.args()
+            accumulate_urban(self.acc, self.alpha, self.pn, self.pe, self.h, self.q, self.cd, self.sd, path[0],
+                             path[1], pz, hit, post.kappa, post.rho, post.nodes, post.mc, gp, solid,
+                             post.urban.mix_rate)
+        else:
+            accumulate(self.acc, self.alpha, self.pn, self.pe, self.h, self.q, self.cd, self.sd, px, py, pz, cphi,
+                       sphi, u, hit, post.kappa, post.rho, post.nodes, post.mc)
         best = fold(self.logw, self.acc, post.log_wts, self._lw)
         w = np.exp(self._lw - best)
         self.w = w / w.sum()
@@ -125,6 +133,8 @@ class SourcePosterior:
         self.rho = float(persistence)
         self._prior: PriorBox | None = None
         self._main: _Cloud | None = None
+        self.urban: UrbanModel | None = None
+        self.n_fallback = 0  # urban readings weighed with the open-field plume (position inside a building)
         self.n_updates = 0
         self.n_resamples = 0
 
@@ -177,6 +187,25 @@ class SourcePosterior:
     delta = property(lambda self: self.main.delta)
     w = property(lambda self: self.main.w)
 
+    def set_urban(self, model: UrbanModel | None) -> None:
+        """Weigh the next readings with the urban likelihood over ``model`` (None: the open field)."""
+        self.urban = model
+        if model is not None:
+            gp, _, _, solid = model.plane.args()
+            self.history.set_urban(gp, solid, model.mix_rate)
+
+    def _path(self, px: float, py: float) -> tuple[np.ndarray, int] | None:
+        """The reading's backward path with the urban model; None (the open-field plume) without it or
+        for a reading inside a building (the known layout does not match the flight)."""
+        if self.urban is None:
+            return None
+        gp, _, _, solid = self.urban.plane.args()
+        if is_solid(gp, solid, px, py):
+            self.n_fallback += 1
+            return None
+        paths, lens = self.urban.paths(np.array([px]), np.array([py]))
+        return paths[0], int(lens[0])
+
     # ------------------------------------------------------------------ update
     def update(self, t: float, px: float, py: float, pz: float, hit: bool, downwind_rad: float, u: float) -> None:
         """One reading at time ``t`` [s]: hit (True) or miss at horizontal (px, py) [m NED],
@@ -192,8 +221,10 @@ class SourcePosterior:
             self._end_window()
             self.t_window = t
         cphi, sphi = math.cos(downwind_rad), math.sin(downwind_rad)
-        self.main.add(self, px, py, pz, hit, cphi, sphi, u)
-        self.history.add(t, px, py, pz, hit, cphi, sphi, u, self.kappa, meander_of(self.mc))
+        path = self._path(px, py)
+        self.main.add(self, px, py, pz, hit, cphi, sphi, u, path)
+        self.history.add(t, px, py, pz, hit, cphi, sphi, u, self.kappa, meander_of(self.mc),
+                         None if path is None else path[0], 0 if path is None else path[1])
         self.n_updates += 1
         self.version += 1
         if self.main.ess() < 0.5 * self.n:
@@ -344,6 +375,12 @@ class SourcePosterior:
         info = np.empty(len(cx))
         phit = np.empty(len(cx))
         pn, pe, h, q, cd, sd = plan
+        if self.urban is not None:
+            paths, lens = self.urban.paths(cx, cy)
+            gp, _, _, solid = self.urban.plane.args()
+            expected_information_urban(paths, lens, pz, pn, pe, h, q, cd, sd, self.mc, gp, solid, self.urban.mix_rate,
+                                       info, phit)
+            return info, phit
         expected_information(np.ascontiguousarray(cx, dtype=float), np.ascontiguousarray(cy, dtype=float), pz,
                              pn, pe, h, q, cd, sd, math.cos(downwind_rad), math.sin(downwind_rad), u, self.mc,
                              info, phit)

@@ -72,6 +72,10 @@ _AY, _BY, _PY, _AZ, _BZ, _PZ, _R02, _L, _CTHR, _EPS, _SUP2, _MF, _MTH2 = range(1
 N_CONSTS = 13
 #: Index of the meander's squared direction sigma [rad^2] in the constant vector.
 MTH2 = _MTH2
+#: Index of the floor ``eps`` of P(hit) and P(miss) in the constant vector.
+EPS = _EPS
+#: Indices of the crosswind Briggs coefficient a_y, the source size r0^2 [m^2] and sigma_up^2 [m^2].
+AY, R02, SUP2 = _AY, _R02, _SUP2
 
 
 def model_constants(stability: str, source_radius_m: float, intermittency_length_m: float,
@@ -154,6 +158,13 @@ def detection_prob(x: float, y: float, z: float, h: float, q: float, u: float, m
     """P(hit) averaged over the meander, approximated by the mean plume (the instantaneous plume
     widened by the meander, its peak lowered to keep the mass): for moves and display."""
     g, cpk, sm, si2 = plume_frame(x, z, h, q, u, mc)
+    return mean_plume_prob(y, g, cpk, sm, si2, mc)
+
+
+@njit(cache=True, inline="always")
+def mean_plume_prob(y: float, g: float, cpk: float, sm: float, si2: float, mc: np.ndarray) -> float:
+    """P(hit) ``y`` m crosswind in the mean plume of ``plume_frame``'s (g, c_peak, sigma_meander,
+    sigma_inst^2): the instantaneous plume widened by the meander, its peak lowered to keep the mass."""
     s2 = si2 + sm * sm
     return _pd(cpk * math.sqrt(si2 / s2) * math.exp(-0.5 * y * y / s2), g, mc)
 
@@ -189,26 +200,35 @@ def accumulate(acc: np.ndarray, alpha: np.ndarray, n: np.ndarray, e: np.ndarray,
     two-state Markov chain: the state persists from one reading to the next with probability
     ``rho``, else is redrawn with P(in) = g; a negative alpha means "no reading yet": g), is
     updated to its posterior. Inside, P(hit) = exp(-g c_thr / c); outside, eps."""
-    eps = mc[_EPS]
     for i in range(acc.shape[0]):
         x, y = _local(px, py, n[i], e[i], cd[i], sd[i], cphi, sphi)
         g, cpk, sm, si2 = plume_frame(x, pz, h[i], q[i], u, mc)
-        for j in range(nodes.shape[0]):
-            d = y - nodes[j] * sm
-            c = cpk * math.exp(-0.5 * d * d / si2)
-            e_in = eps
-            if c > 0.0 and g > 0.0:
-                e_in = eps + (1.0 - 2.0 * eps) * math.exp(-g * mc[_CTHR] / c)
-            a0 = alpha[i, j]
-            p_in = g if a0 < 0.0 else rho * a0 + (1.0 - rho) * g
-            if hit:
-                lik = p_in * e_in + (1.0 - p_in) * eps
-                post = p_in * e_in / lik
-            else:
-                lik = p_in * (1.0 - e_in) + (1.0 - p_in) * (1.0 - eps)
-                post = p_in * (1.0 - e_in) / lik
-            alpha[i, j] = post
-            acc[i, j] += kappa * math.log(lik)
+        weigh_particle(acc, alpha, i, y, g, cpk, sm, si2, hit, kappa, rho, nodes, mc)
+
+
+@njit(cache=True, inline="always")
+def weigh_particle(acc: np.ndarray, alpha: np.ndarray, i: int, y: float, g: float, cpk: float, sm: float,
+                   si2: float, hit: bool, kappa: float, rho: float, nodes: np.ndarray, mc: np.ndarray) -> None:
+    """One reading for particle ``i``, ``y`` m crosswind of its plume whose frame at the sensor is
+    ``plume_frame``'s (g, c_peak, sigma_meander, sigma_inst^2): the body of :func:`accumulate`
+    (shared with the urban likelihood, ``mission.strategies.ste_urban``)."""
+    eps = mc[_EPS]
+    for j in range(nodes.shape[0]):
+        d = y - nodes[j] * sm
+        c = cpk * math.exp(-0.5 * d * d / si2)
+        e_in = eps
+        if c > 0.0 and g > 0.0:
+            e_in = eps + (1.0 - 2.0 * eps) * math.exp(-g * mc[_CTHR] / c)
+        a0 = alpha[i, j]
+        p_in = g if a0 < 0.0 else rho * a0 + (1.0 - rho) * g
+        if hit:
+            lik = p_in * e_in + (1.0 - p_in) * eps
+            post = p_in * e_in / lik
+        else:
+            lik = p_in * (1.0 - e_in) + (1.0 - p_in) * (1.0 - eps)
+            post = p_in * (1.0 - e_in) / lik
+        alpha[i, j] = post
+        acc[i, j] += kappa * math.log(lik)
 
 
 @njit(cache=True)
@@ -232,7 +252,7 @@ def fold(logw: np.ndarray, acc: np.ndarray, log_wts: np.ndarray, out: np.ndarray
 
 
 @njit(cache=True, inline="always")
-def _binary_entropy(p: float) -> float:
+def binary_entropy(p: float) -> float:
     """Entropy of a binary variable with P(1) = p, in bits."""
     if p <= 0.0 or p >= 1.0:
         return 0.0
@@ -254,10 +274,10 @@ def expected_information(cx: np.ndarray, cy: np.ndarray, pz: float, n: np.ndarra
             x, y = _local(cx[k], cy[k], n[i], e[i], cd[i], sd[i], cphi, sphi)
             p = detection_prob(x, y, pz, h[i], q[i], u, mc)
             pbar += p
-            hbar += _binary_entropy(p)
+            hbar += binary_entropy(p)
         pbar /= m
         out_phit[k] = pbar
-        out_info[k] = _binary_entropy(pbar) - hbar / m
+        out_info[k] = binary_entropy(pbar) - hbar / m
 
 
 def detection_grid(xs: np.ndarray, ys: np.ndarray, z: float, h: float, q: float, u: float, mc: np.ndarray

@@ -23,8 +23,8 @@ import numpy as np
 from numba import njit
 
 from sitl.world.dynamics import rk4_step
-from sitl.world.urban.geometry import building_at
 from sitl.world.wind.kernel import WindKernel, open_wind, urban_wind
+from urbanflow.geometry import building_at
 from vehicle.frames import quat_to_dcm
 from vehicle.params import MAX_ROTORS, P_NROT, P_ROT0, P_TRUTH, TRUTH_BET
 
@@ -43,7 +43,7 @@ FLAG_ON_GROUND, FLAG_CRASHED, FLAG_TOUCHDOWN_SPEED, FLAG_COLLISIONS = 0, 1, 2, 3
 
 
 class Obstacles(NamedTuple):
-    """Buildings as prisms (the layout of :class:`sitl.world.urban.geometry.BuildingArrays`): footprint
+    """Buildings as prisms (the layout of :class:`urbanflow.geometry.BuildingArrays`): footprint
     vertices (V, 2) NED m, per-building vertex offsets (B + 1,), roof heights (B,) m above ground,
     footprint boxes (B, 4). No buildings: empty arrays."""
 

@@ -18,8 +18,8 @@ from typing import Any
 
 from sitl.world.plume.setup import PlumeSetup
 from sitl.world.sensors import SensorSuiteConfig
-from sitl.world.urban.config import UrbanScene
 from sitl.world.wind import KaimalTurbulence, SteadyWind
+from urbanflow.config import UrbanScene
 
 
 @dataclass(frozen=True)

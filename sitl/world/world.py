@@ -379,7 +379,7 @@ def _obstacles(scenario: WorldSpec) -> Obstacles:
     """The scenario's buildings as prisms for the physics loop and the plume (none: empty arrays)."""
     if scenario.urban is None or not scenario.urban.buildings:
         return NO_OBSTACLES
-    from sitl.world.urban.geometry import BuildingArrays
+    from urbanflow.geometry import BuildingArrays
 
     b = BuildingArrays.from_buildings(scenario.urban.buildings)
     return Obstacles(b.verts, b.offsets, b.heights, b.bbox)

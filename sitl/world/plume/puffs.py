@@ -22,7 +22,7 @@ from sitl.world.plume.meander import (
     frozen_turbulence_variances,
     meander_at,
 )
-from sitl.world.urban.geometry import building_at, reflect_point
+from urbanflow.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
 # The puff update and the concentration sum are the plume's hot loops (called at the plume

@@ -1,5 +1,11 @@
 """Urban mean wind among buildings: a diagnostic, mass-consistent field of the QUIC-URB kind.
 
+The pure field computation (configuration, geometry, parameterizations, solver, field, samplers)
+lives in the top-level package :mod:`urbanflow`, below both the world and the mission (a mission
+computes the same field from the buildings it knows and its estimated wind); this package keeps
+the world's side: the on-disk cache, the scenario layouts and parser, the world's wind model, and
+re-exports the names below.
+
 The paper's Scenario 4 used QUIC (Quick Urban and Industrial Complex) winds. This package builds
 the same kind of field from scratch: buildings as extruded footprints (:mod:`.config`), an
 upstream log profile, the empirical building parameterizations of Roeckle (1990) and QUIC-URB
@@ -29,20 +35,20 @@ from typing import Any
 
 # Names load on first use (PEP 562): the world's wind kernel imports .sampling on every simulator
 # start, and must not pull in the solver (pyamg, scipy.sparse) with the package.
-_EXPORTS = {
-    "cache_key": "cache", "default_cache_dir": "cache", "load_field": "cache", "load_or_solve": "cache",
-    "save_field": "cache",
-    "BoxBuilding": "config", "ConfigError": "config", "GridSpec": "config", "LogWindProfile": "config",
-    "PolygonBuilding": "config", "UrbanOptions": "config", "UrbanScene": "config",
-    "UrbanWindField": "field",
-    "urban_turbulence_multiplier_at": "sampling", "urban_wind_at": "sampling", "urban_wind_mean": "sampling",
-    "urban_wind_mean_many": "sampling",
-    "BuildingArrays": "geometry", "building_at": "geometry", "inside_many": "geometry", "reflect_many": "geometry",
-    "reflect_point": "geometry",
-    "PAPER_S4_START_NED": "layouts", "PAPER_S4_SUGGESTED_SOURCE_NED": "layouts", "cube_array_scene": "layouts",
-    "isolated_cube_scene": "layouts", "paper_s4_scene": "layouts", "street_canyon_scene": "layouts",
-    "parse_urban_scene": "parse", "solve_urban_wind": "solve",
-}  # fmt: skip
+_BY_MODULE = {
+    "sitl.world.urban.cache": ("cache_key", "default_cache_dir", "load_field", "load_or_solve", "save_field"),
+    "urbanflow.config": ("BoxBuilding", "ConfigError", "GridSpec", "LogWindProfile", "PolygonBuilding",
+                         "UrbanOptions", "UrbanScene"),
+    "urbanflow.field": ("UrbanWindField",),
+    "urbanflow.sampling": ("urban_turbulence_multiplier_at", "urban_wind_at", "urban_wind_mean",
+                           "urban_wind_mean_many"),
+    "urbanflow.geometry": ("BuildingArrays", "building_at", "inside_many", "reflect_many", "reflect_point"),
+    "sitl.world.urban.layouts": ("PAPER_S4_START_NED", "PAPER_S4_SUGGESTED_SOURCE_NED", "cube_array_scene",
+                                 "isolated_cube_scene", "paper_s4_scene", "street_canyon_scene"),
+    "sitl.world.urban.parse": ("parse_urban_scene",),
+    "urbanflow.solve": ("solve_urban_wind",),
+}
+_EXPORTS = {name: module for module, names in _BY_MODULE.items() for name in names}
 
 __all__ = sorted(_EXPORTS)
 
@@ -50,4 +56,4 @@ __all__ = sorted(_EXPORTS)
 def __getattr__(name: str) -> Any:
     if name not in _EXPORTS:
         raise AttributeError(f"module 'sitl.world.urban' has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    return getattr(importlib.import_module(_EXPORTS[name]), name)

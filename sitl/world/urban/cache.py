@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import UrbanScene
-from .field import UrbanWindField
-from .solve import solve_urban_wind
-from .solver import SolveStats
+from urbanflow.config import UrbanScene
+from urbanflow.field import UrbanWindField
+from urbanflow.solve import solve_urban_wind
+from urbanflow.solver import SolveStats
 
 FIELD_FORMAT = "windseek-urban-1"
 _ARRAYS = ("u_n", "v_e", "w_d", "cell_building", "zone", "turbulence_multiplier")

@@ -28,7 +28,7 @@ of H/W = 1 between two long blocks, and a regular array of cubes.
 
 from __future__ import annotations
 
-from .config import BoxBuilding, GridSpec, LogWindProfile, UrbanOptions, UrbanScene
+from urbanflow.config import BoxBuilding, GridSpec, LogWindProfile, UrbanOptions, UrbanScene
 
 PAPER_S4_START_NED = (340.0, 30.0)
 PAPER_S4_SUGGESTED_SOURCE_NED = (300.0, 300.0, -2.0)

@@ -18,7 +18,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from .config import (
+from urbanflow.config import (
     BoxBuilding,
     Building,
     ConfigError,

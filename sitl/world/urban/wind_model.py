@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 
 from sitl.world.urban.cache import load_or_solve
-from sitl.world.urban.config import UrbanScene
-from sitl.world.urban.field import UrbanWindField
 from sitl.world.wind.field import WindField
 from sitl.world.wind.kernel import WindKernel, wind_mean, wind_velocity, wind_velocity_many
 from sitl.world.wind.steady import SteadyWind
 from sitl.world.wind.turbulence import KaimalTurbulence
+from urbanflow.config import UrbanScene
+from urbanflow.field import UrbanWindField
 
 
 class UrbanWind:

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from sitl.world.urban.sampling import urban_sample, urban_wind_at
+from urbanflow.sampling import urban_sample, urban_wind_at
 
 
 class WindKernel(NamedTuple):

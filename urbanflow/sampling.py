@@ -3,7 +3,7 @@
 The single implementation of sampling; the world's wind kernel calls :func:`urban_wind_at` and
 :func:`urban_multiplier_at` from its own compiled loop. Layout of the arrays and the rules (log-law
 vertical interpolation, zero inside buildings, the upstream profile outside the grid) are in
-:mod:`sitl.world.urban.field`. Light on purpose: numpy and numba only, no solver.
+:mod:`urbanflow.field`. Light on purpose: numpy and numba only, no solver.
 """
 
 from __future__ import annotations
