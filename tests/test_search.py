@@ -100,7 +100,7 @@ def test_shipped_strategy_files_load(path):
     """Every strategy file shipped in mission/strategy_files/ loads for every strategy, and
     changes something from the defaults (a file that changes nothing is a stale file)."""
     changed = False
-    for name in ("anemotaxis", "surge-cast", "zigzag"):
+    for name in ("anemotaxis", "surge-cast", "zigzag", "infotaxis"):
         changed |= load_params(name, path) != load_params(name)
     assert changed
 
