@@ -142,6 +142,14 @@ class CompassHeading:
         """Stated 1-sigma of the corrected heading [rad]; 0 until :attr:`ready` (nothing is stated then)."""
         return math.radians(self.config.sigma_deg) if self.ready else 0.0
 
+    def summary(self) -> dict[str, object]:
+        """Figures for a report: the offset and stated sigma (deg, None until ready), the declination used."""
+        d = self.declination_rad
+        return {"offset_deg": round(math.degrees(self.offset_rad), 2) if self.ready else None,
+                "sigma_deg": round(math.degrees(self.sigma_rad), 2) if self.ready else None,
+                "declination_deg": None if d is None else round(math.degrees(d), 2),
+                "samples": dict(self.counters)}  # fmt: skip
+
     def correct(self, q_published: np.ndarray) -> np.ndarray:
         """The published attitude turned by the offset about NED down: Rz(dpsi) R_pub as a quaternion."""
         q = np.asarray(q_published, dtype=float)

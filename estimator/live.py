@@ -445,4 +445,6 @@ class LiveCore:
             "rejected": dict(e.rejected),
             "counters": dict(self.counters),
             "restarts": self.restarts,
+            "compass": {**self.compass.summary(), "autopilot_yaw_sigma_deg": None if self.autopilot_yaw_sigma is None
+                        else round(math.degrees(self.autopilot_yaw_sigma), 2)},
         }

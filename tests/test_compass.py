@@ -133,6 +133,9 @@ def test_a_heading_error_of_the_autopilot_is_corrected_by_the_compass(flight: Fl
     notes = core.take_notes()
     assert any(n.startswith("compass: the autopilot's heading is checked") for n in notes)
     assert any("-12." in n and "off its magnetometer" in n for n in notes)
+    c = core.summary()["compass"]
+    assert c["offset_deg"] == pytest.approx(-12.0, abs=0.5) and c["sigma_deg"] == 1.0
+    assert c["declination_deg"] == pytest.approx(3.42, abs=0.01) and c["samples"]["accepted"] > 100
 
 
 def test_the_autopilots_own_heading_sigma_is_carried_when_larger(flight: Flight) -> None:
