@@ -103,6 +103,7 @@ class LiveCore:
         self.compass = CompassHeading(cfg.compass)
         self._q_pub: np.ndarray | None = None  # the attitude the autopilot published last
         self.autopilot_yaw_sigma: float | None = None  # the heading 1-sigma the autopilot states (rad)
+        self.autopilot_kind: int | None = None  # MAV_AUTOPILOT of the autopilot locked on to
         self._esc_order = cfg.esc_order or tuple(range(cfg.vehicle.n_rotors))
         if cfg.airframe:
             self.model_note = self._mismatch(f"the vehicle is {cfg.airframe}")
@@ -257,7 +258,7 @@ class LiveCore:
                 and int(msg.autopilot) != MAV_AUTOPILOT_INVALID
                 and (self.config.target_system is None or src[0] == self.config.target_system)
             ):
-                self.target = src
+                self.target, self.autopilot_kind = src, int(msg.autopilot)
                 self.note(f"autopilot system {src[0]} component {src[1]}")
                 return True
             self.counters["before_lock"] += 1
@@ -338,9 +339,7 @@ class LiveCore:
         """Hold the published attitude; give the compass check each magnetometer sample with it."""
         if group == "attitude":
             self._q_pub = dec.attitude(msg)
-            return
-        mag = dec.magnetometer(msg)
-        if mag is not None and self._q_pub is not None:
+        elif (mag := dec.magnetometer(msg, self.autopilot_kind)) is not None and self._q_pub is not None:
             was_ready = self.compass.ready
             self.compass.sample(t, mag, self._q_pub)
             if self.compass.ready and not was_ready:

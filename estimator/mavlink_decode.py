@@ -16,7 +16,8 @@ Units on the wire (MAVLink common.xml, checked against ArduPilot's senders for R
   (ArduPilot's, ESCs 1-4 in its motor order): rpm, no time stamp; RAW_RPM: one sensor (``index``) per
   message, frequency in rpm, no time stamp.
 - Magnetic field (the compass check, direction only): HIL_SENSOR and HIGHRES_IMU xmag..zmag in gauss,
-  SCALED_IMU and RAW_IMU in mgauss (ArduPilot fills RAW_IMU with its calibrated field); all zeros = none.
+  SCALED_IMU and RAW_IMU in mgauss (ArduPilot fills both with its calibrated field; PX4's SCALED_IMU is the
+  raw sensor_mag before its calibration, not used); all zeros = none.
 - Position (the compass check's World Magnetic Model): GLOBAL_POSITION_INT, GPS_RAW_INT (lat/lon degE7,
   alt mm), HOME_POSITION (latitude/longitude degE7, altitude mm).
 - ACTUATOR_OUTPUT_STATUS: actuator[32] floats in the output driver's units (PX4: PWM us,
@@ -36,6 +37,7 @@ import numpy as np
 from vehicle.frames import euler_to_quat
 
 G0 = 9.80665  # m/s^2 per g (MAVLink mG)
+MAV_AUTOPILOT_PX4 = 12
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 #: A boot clock above this (s, ~116 days) is an epoch time stamp, not time since boot.
 MAX_BOOT_TIME_S = 1e7
@@ -86,15 +88,20 @@ def imu(msg: Any) -> tuple[np.ndarray, np.ndarray]:
     return acc, gyr
 
 
-def magnetometer(msg: Any) -> np.ndarray | None:
-    """Magnetic field FRD in gauss of an IMU message, or None when it carries none (all zeros, absent)."""
+def magnetometer(msg: Any, autopilot: int | None = None) -> np.ndarray | None:
+    """Magnetic field FRD in gauss of an IMU message, or None when it carries none (all zeros, absent) or not a
+    calibrated one: PX4's (``autopilot`` MAV_AUTOPILOT_PX4) SCALED_IMU / RAW_IMU carry ``sensor_mag`` as the
+    sensor gave it, before PX4 applies its CAL_MAGn offsets, scales and rotation."""
+    mtype = msg.get_type()
+    if mtype in ("SCALED_IMU", "RAW_IMU") and autopilot == MAV_AUTOPILOT_PX4:
+        return None
     try:
         m = np.array([msg.xmag, msg.ymag, msg.zmag], dtype=float)
     except AttributeError:
         return None
     if not m.any():
         return None
-    return m * 1e-3 if msg.get_type() in ("SCALED_IMU", "RAW_IMU") else m
+    return m * 1e-3 if mtype in ("SCALED_IMU", "RAW_IMU") else m
 
 
 def yaw_sigma(msg: Any) -> float | None:

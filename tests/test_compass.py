@@ -146,3 +146,17 @@ def test_the_autopilots_own_heading_sigma_is_carried_when_larger(flight: Flight)
     assert rmse > 0.6 and cov > 0.9  # the error is there, and stated
     _, cov_without, _ = _run(flight, CompassConfig(autopilot_sigma=False), 5.0, mag=False, odometry_deg=4.0)
     assert cov_without < 0.75
+
+
+def test_px4s_raw_scaled_imu_field_is_not_taken() -> None:
+    """PX4's SCALED_IMU carries sensor_mag before its calibration (offsets, scales, rotation): not a compass;
+    ArduPilot fills SCALED_IMU and RAW_IMU with its calibrated field (mgauss)."""
+    from estimator.mavlink_decode import magnetometer
+    from wire.dialect import mavlink
+
+    m = mavlink.MAVLink_scaled_imu_message(1000, 0, 0, -1000, 0, 0, 0, 215, 13, 432, 2000)
+    assert magnetometer(m, 12) is None  # MAV_AUTOPILOT_PX4
+    assert np.allclose(magnetometer(m, 3), [0.215, 0.013, 0.432])  # MAV_AUTOPILOT_ARDUPILOTMEGA
+    hr = mavlink.MAVLink_highres_imu_message(1000, 0, 0, -9.8, 0, 0, 0, 0.215, 0.013, 0.432, 1013.0, 0, 0, 20.0,
+                                             0x1FF, 0)  # fmt: skip
+    assert np.allclose(magnetometer(hr, 12), [0.215, 0.013, 0.432])
