@@ -31,7 +31,8 @@ field as the compass measures it, so an EKF3 heading error shows in full. PX4's 
 field *minus EKF2's in-flight magnetometer bias estimate* (PX4 ``HIGHRES_IMU.hpp``): an EKF2 heading error
 that EKF2 has partly explained as a magnetometer bias is partly hidden from the check (measured on PX4 paper-s1
 flights: about a third of a 3-8 deg error found); EKF2's own stated yaw sigma (2.4-3.3 deg there) is then what
-the covariance carries.
+the covariance carries. PX4's SCALED_IMU field is ``sensor_mag`` before PX4's calibration and is not used
+(:func:`estimator.mavlink_decode.magnetometer`).
 
 Plain and synchronous; SI units, NED world, FRD body, attitude quaternions [w, x, y, z] body -> NED.
 """
