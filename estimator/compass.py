@@ -45,8 +45,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vehicle.frames import quat_to_dcm
-
 
 @dataclass(frozen=True)
 class CompassConfig:
@@ -100,17 +98,18 @@ class CompassHeading:
         self.set_field(earth_field_ned_gauss(round(lat_deg, 3), round(lon_deg, 3), round(alt_m, -2)))
         return True
 
-    def sample(self, t: float, mag_body: np.ndarray, q_published: np.ndarray) -> None:
-        """One magnetometer sample (FRD, any unit) with the attitude the autopilot published for it."""
+    def sample(self, t: float, mag_body: np.ndarray, R_published: np.ndarray) -> None:  # noqa: N803 - a DCM
+        """One magnetometer sample (FRD, any unit) with the attitude the autopilot published for it (DCM body ->
+        NED: the caller converts each published attitude once, not each sample)."""
         cfg = self.config
         if not cfg.enabled or self.declination_rad is None or self.inclination_rad is None:
             return
         m = np.asarray(mag_body, dtype=float)
         norm = float(np.linalg.norm(m))
-        if not (math.isfinite(norm) and norm > 0.0 and np.all(np.isfinite(q_published))):
+        if not (math.isfinite(norm) and norm > 0.0 and np.all(np.isfinite(R_published))):
             self.counters["no_field" if norm == 0.0 else "bad_value"] += 1
             return
-        mn = quat_to_dcm(np.asarray(q_published, dtype=float)) @ m
+        mn = R_published @ m
         dip = math.atan2(mn[2], math.hypot(mn[0], mn[1]))
         if abs(dip - self.inclination_rad) > math.radians(cfg.max_dip_error_deg):
             self.counters["distorted"] += 1

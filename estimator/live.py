@@ -40,6 +40,7 @@ from estimator.motor_output import OutputMap
 from estimator.rpm_free import MotorCommandModel
 from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR
 from estimator.ukf import WindEstimator
+from vehicle.frames import quat_to_dcm
 from vehicle.params import VehicleParams
 
 MAV_AUTOPILOT_INVALID = 8
@@ -101,7 +102,7 @@ class LiveCore:
         self.model_note: str | None = None
         self.fit = ModelFit(cfg.vehicle)
         self.compass = CompassHeading(cfg.compass)
-        self._q_pub: np.ndarray | None = None  # the attitude the autopilot published last
+        self._R_pub: np.ndarray | None = None  # the attitude the autopilot published last (DCM body -> NED)
         self.autopilot_yaw_sigma: float | None = None  # the heading 1-sigma the autopilot states (rad)
         self.autopilot_kind: int | None = None  # MAV_AUTOPILOT of the autopilot locked on to
         self._esc_order = cfg.esc_order or tuple(range(cfg.vehicle.n_rotors))
@@ -338,10 +339,10 @@ class LiveCore:
     def _compass(self, group: str, msg: Any, t: float) -> None:
         """Hold the published attitude; give the compass check each magnetometer sample with it."""
         if group == "attitude":
-            self._q_pub = dec.attitude(msg)
-        elif (mag := dec.magnetometer(msg, self.autopilot_kind)) is not None and self._q_pub is not None:
+            self._R_pub = None if (q := dec.attitude(msg)) is None else quat_to_dcm(q)
+        elif (mag := dec.magnetometer(msg, self.autopilot_kind)) is not None and self._R_pub is not None:
             was_ready = self.compass.ready
-            self.compass.sample(t, mag, self._q_pub)
+            self.compass.sample(t, mag, self._R_pub)
             if self.compass.ready and not was_ready:
                 self.note(f"compass: the autopilot's heading is {math.degrees(self.compass.offset_rad):+.1f} deg off "
                           "its magnetometer's; the attitude is corrected by the running offset")  # fmt: skip

@@ -89,12 +89,15 @@ def imu(msg: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def magnetometer(msg: Any, autopilot: int | None = None) -> np.ndarray | None:
-    """Magnetic field FRD in gauss of an IMU message, or None when it carries none (all zeros, absent) or not a
-    calibrated one: PX4's (``autopilot`` MAV_AUTOPILOT_PX4) SCALED_IMU / RAW_IMU carry ``sensor_mag`` as the
-    sensor gave it, before PX4 applies its CAL_MAGn offsets, scales and rotation."""
+    """Magnetic field FRD in gauss of an IMU message, or None when it carries none (all zeros, absent, not
+    updated since the last message by its fields_updated bits) or not a calibrated one: PX4's (``autopilot``
+    MAV_AUTOPILOT_PX4) SCALED_IMU / RAW_IMU carry ``sensor_mag`` as the sensor gave it, before PX4 applies its
+    CAL_MAGn offsets, scales and rotation."""
     mtype = msg.get_type()
     if mtype in ("SCALED_IMU", "RAW_IMU") and autopilot == MAV_AUTOPILOT_PX4:
         return None
+    if mtype in ("HIL_SENSOR", "HIGHRES_IMU") and not int(msg.fields_updated) & 0x1C0:
+        return None  # the last sample again (the field is 50 Hz, the IMU 250 Hz): weighed once
     try:
         m = np.array([msg.xmag, msg.ymag, msg.zmag], dtype=float)
     except AttributeError:

@@ -45,7 +45,7 @@ def test_the_offset_of_a_turned_attitude_is_found_and_corrected() -> None:
     q_pub = _turn(q_true, -12.0)  # the autopilot's heading is 12 deg short
     for k in range(200):
         m = quat_to_dcm(q_true).T @ FIELD + 0.004 * rng.standard_normal(3)  # windseek's magnetometer noise
-        ch.sample(0.02 * k, m, q_pub)
+        ch.sample(0.02 * k, m, quat_to_dcm(q_pub))
     assert ch.ready and math.degrees(ch.offset_rad) == pytest.approx(12.0, abs=0.3)
     R = quat_to_dcm(ch.correct(q_pub))
     assert _heading_deg(R) == pytest.approx(30.0, abs=0.3)
@@ -57,10 +57,11 @@ def test_distorted_and_empty_samples_are_dropped_and_counted() -> None:
     ch = CompassHeading(CompassConfig(min_samples=5))
     ch.set_field(FIELD)
     q = np.array([1.0, 0.0, 0.0, 0.0])
+    R = np.eye(3)
     for k in range(20):
-        ch.sample(0.02 * k, FIELD + np.array([0.0, 0.0, 0.4]), q)  # a motor current along body z: dip 76 deg
-        ch.sample(0.02 * k, np.zeros(3), q)  # PX4 without a magnetometer sends zeros
-        ch.sample(0.02 * k, np.array([math.nan, 0.1, 0.4]), q)
+        ch.sample(0.02 * k, FIELD + np.array([0.0, 0.0, 0.4]), R)  # a motor current along body z: dip 76 deg
+        ch.sample(0.02 * k, np.zeros(3), R)  # PX4 without a magnetometer sends zeros
+        ch.sample(0.02 * k, np.array([math.nan, 0.1, 0.4]), R)
     assert not ch.ready and ch.offset_rad == 0.0 and ch.sigma_rad == 0.0
     assert ch.counters == {"distorted": 20, "no_field": 20, "bad_value": 20}
     assert np.array_equal(ch.correct(q), q)
@@ -68,9 +69,8 @@ def test_distorted_and_empty_samples_are_dropped_and_counted() -> None:
 
 def test_no_position_no_check() -> None:
     ch = CompassHeading()
-    q = np.array([1.0, 0.0, 0.0, 0.0])
     for k in range(100):
-        ch.sample(0.02 * k, FIELD, q)
+        ch.sample(0.02 * k, FIELD, np.eye(3))
     assert not ch.ready and ch.counters["accepted"] == 0
     assert not ch.locate(0.0, 0.0) and not ch.locate(math.nan, 8.5) and not ch.locate(91.0, 8.5)
     assert ch.counters["bad_position"] == 3
@@ -160,3 +160,6 @@ def test_px4s_raw_scaled_imu_field_is_not_taken() -> None:
     hr = mavlink.MAVLink_highres_imu_message(1000, 0, 0, -9.8, 0, 0, 0, 0.215, 0.013, 0.432, 1013.0, 0, 0, 20.0,
                                              0x1FF, 0)  # fmt: skip
     assert np.allclose(magnetometer(hr, 12), [0.215, 0.013, 0.432])
+    stale = mavlink.MAVLink_highres_imu_message(1000, 0, 0, -9.8, 0, 0, 0, 0.215, 0.013, 0.432, 1013.0, 0, 0, 20.0,
+                                                0x3F, 0)  # fmt: skip
+    assert magnetometer(stale, 12) is None  # accel and gyro new, the field the last one again
