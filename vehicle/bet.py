@@ -127,7 +127,7 @@ def _inplane(mu: float, lam: float, pb: float, qb: float, th0: float, ttw: float
     return fx, fy, tq
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rotor_loads(
     v_hub: np.ndarray, rates: np.ndarray, omega: float, spin: float, v_i: float, rho: float,
     bp: np.ndarray, out: np.ndarray,

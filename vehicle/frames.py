@@ -15,8 +15,15 @@ from numba import njit
 @njit(cache=True)
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
     """Rotation matrix body (FRD) -> world (NED) from a unit quaternion."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
     R = np.empty((3, 3))
+    quat_to_dcm_into(q, R)
+    return R
+
+
+@njit(cache=True, inline="always")
+def quat_to_dcm_into(q: np.ndarray, R: np.ndarray) -> None:
+    """:func:`quat_to_dcm` into ``R`` (3, 3): no allocation, for the physics tick."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
     R[0, 0] = 1 - 2 * (y * y + z * z)
     R[0, 1] = 2 * (x * y - w * z)
     R[0, 2] = 2 * (x * z + w * y)
@@ -26,13 +33,19 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
     R[2, 0] = 2 * (x * z - w * y)
     R[2, 1] = 2 * (y * z + w * x)
     R[2, 2] = 1 - 2 * (x * x + y * y)
-    return R
 
 
 @njit(cache=True)
 def dcm_to_quat(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (w >= 0) from a rotation matrix body -> world."""
     q = np.empty(4)
+    dcm_to_quat_into(R, q)
+    return q
+
+
+@njit(cache=True, inline="always")
+def dcm_to_quat_into(R: np.ndarray, q: np.ndarray) -> None:
+    """:func:`dcm_to_quat` into ``q`` (4,): no allocation, for the controller's tick."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     if tr > 0.0:
         s = math.sqrt(tr + 1.0) * 2.0
@@ -59,19 +72,28 @@ def dcm_to_quat(R: np.ndarray) -> np.ndarray:
         q[2] = (R[1, 2] + R[2, 1]) / s
         q[3] = 0.25 * s
     if q[0] < 0.0:
-        q *= -1.0
-    return q / math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        for i in range(4):
+            q[i] *= -1.0
+    n = math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    for i in range(4):
+        q[i] = q[i] / n
 
 
 @njit(cache=True)
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a * b."""
     out = np.empty(4)
+    quat_mul_into(a, b, out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def quat_mul_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """:func:`quat_mul` into ``out`` (4,; not ``a`` or ``b``): no allocation."""
     out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3]
     out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2]
     out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1]
     out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]
-    return out
 
 
 @njit(cache=True)

@@ -47,7 +47,7 @@ from vehicle.params import (
     TRUTH_SIH,
     VehicleParams,
 )
-from vehicle.rotor_model import rotor_wrench
+from vehicle.rotor_model import N_COEF, rotor_wrench_into
 
 
 @njit(cache=True)
@@ -68,12 +68,13 @@ def hub_airspeeds(R: np.ndarray, vel: np.ndarray, rates: np.ndarray, hub_winds: 
 
 @njit(cache=True)
 def _bet_wrench(v_hubs: np.ndarray, v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray,
-                w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray) -> np.ndarray:  # fmt: skip
+                w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray, fm: np.ndarray,
+                loads: np.ndarray) -> None:  # fmt: skip
+    """The blade-element wrench into ``fm`` (6,); ``loads`` (6,) is scratch."""
     n = int(p[P_NROT])
     bp = p[P_BLADE0:P_BLADE0 + N_BLADE]
     rho = p[P_RHO]
-    fm = np.zeros(6)
-    loads = np.empty(6)
+    fm[:] = 0.0
     jh = p[P_JHUB]
     h_spin = 0.0  # sum of spin * w: the rotating parts' angular momentum about -z_b, per unit inertia
     alpha = 0.0  # sum of spin * w_dot, for the reaction torque
@@ -102,13 +103,13 @@ def _bet_wrench(v_hubs: np.ndarray, v_air: np.ndarray, rates: np.ndarray, w_rot:
     fm[0] -= q * p[P_CDA_X] * v_air[0]
     fm[1] -= q * p[P_CDA_Y] * v_air[1]
     fm[2] -= q * p[P_CDA_Z] * v_air[2]
-    return fm
 
 
 @njit(cache=True)
-def _sih_wrench(v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray) -> np.ndarray:
+def _sih_wrench(v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.ndarray, fm: np.ndarray) -> None:
+    """PX4 SIH's wrench into ``fm`` (6,)."""
     n = int(p[P_NROT])
-    fm = np.zeros(6)
+    fm[:] = 0.0
     wmax = p[P_WMAX]
     for i in range(n):
         u = (w_rot[i] / wmax) ** 2
@@ -121,32 +122,35 @@ def _sih_wrench(v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.n
     for k in range(3):
         fm[k] -= p[P_SIH_KDV] * v_air[k]
         fm[3 + k] -= p[P_SIH_KDW] * rates[k]
-    return fm
 
 
 @njit(cache=True)
 def truth_wrench(R: np.ndarray, vel: np.ndarray, rates: np.ndarray, winds: np.ndarray, w_rot: np.ndarray,
-                 w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray) -> np.ndarray:  # fmt: skip
-    """Forces (N) and moments about the CG (N*m), FRD ``[X, Y, Z, L, M, N]``, of the vehicle's truth.
+                 w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray, fm: np.ndarray,
+                 v_air: np.ndarray, v_hubs: np.ndarray, loads: np.ndarray, reg: np.ndarray) -> None:  # fmt: skip
+    """Forces (N) and moments about the CG (N*m), FRD ``[X, Y, Z, L, M, N]``, of the vehicle's truth,
+    into ``fm`` (6,).
 
     ``winds`` (1 + N, 3): the air-mass velocity (NED, m/s) at the CG, then at each hub (only ``bet``
     reads the hubs). ``v_i`` (N,) induced velocities (m/s, the ``bet`` inflow states); ``vi_dot``
     receives their rates (zero for the other truths). Rotor speeds and accelerations in rad/s(^2).
+    Scratch, so that an evaluation allocates nothing (the physics tick's): ``v_air`` (3,) the airspeed at
+    the CG (FRD, m/s), ``v_hubs`` (MAX_ROTORS, 3) at each hub, ``loads`` (6,) one rotor's, ``reg``
+    (N_COEF,) the identified model's regressors.
     """
-    v_air = np.empty(3)
     for k in range(3):
         v_air[k] = (R[0, k] * (vel[0] - winds[0, 0]) + R[1, k] * (vel[1] - winds[0, 1])
                     + R[2, k] * (vel[2] - winds[0, 2]))  # fmt: skip
     truth = int(p[P_TRUTH])
     if truth == TRUTH_BET:
-        n = int(p[P_NROT])
-        v_hubs = np.empty((n, 3))
         hub_airspeeds(R, vel, rates, winds[1:], p, v_hubs)
-        return _bet_wrench(v_hubs, v_air, rates, w_rot, w_rot_dot, v_i, p, vi_dot)
+        _bet_wrench(v_hubs, v_air, rates, w_rot, w_rot_dot, v_i, p, vi_dot, fm, loads)
+        return
     vi_dot[:] = 0.0
     if truth == TRUTH_SIH:
-        return _sih_wrench(v_air, rates, w_rot, p)
-    return rotor_wrench(v_air, rates, w_rot, w_rot_dot, p)
+        _sih_wrench(v_air, rates, w_rot, p, fm)
+    else:
+        rotor_wrench_into(v_air, rates, w_rot, w_rot_dot, p, reg, fm)
 
 
 def static_wrench(params: VehicleParams, omega: np.ndarray, rates: np.ndarray | None = None) -> np.ndarray:
@@ -166,12 +170,15 @@ def _steady_wrench(params: VehicleParams, p: np.ndarray, omega: np.ndarray, rate
     w = np.zeros(MAX_ROTORS)
     w[:n] = omega
     zero = np.zeros(MAX_ROTORS)
+    fm = np.zeros(6)
+    wk = (np.zeros(3), np.zeros((MAX_ROTORS, 3)), np.zeros(6), np.zeros(N_COEF))
     if params.truth == "bet":  # settle the inflow: its fixed point is momentum theory
         v_i[:n] = params.hover_induced_velocity_m_s
         for _ in range(400):
-            truth_wrench(R, np.zeros(3), rates, winds, w, zero, v_i, p, vi_dot)
+            truth_wrench(R, np.zeros(3), rates, winds, w, zero, v_i, p, vi_dot, fm, *wk)
             v_i[:n] += vi_dot[:n] * 0.002
-    return np.asarray(truth_wrench(R, np.zeros(3), rates, winds, w, zero, v_i, p, vi_dot))
+    truth_wrench(R, np.zeros(3), rates, winds, w, zero, v_i, p, vi_dot, fm, *wk)
+    return fm
 
 
 def static_thrust(params: VehicleParams, omega: float) -> float:

@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from vehicle.frames import dcm_to_quat, quat_mul
+from vehicle.frames import dcm_to_quat_into, quat_mul_into
 from vehicle.params import (
     MAX_ROTORS,
     P_ALLOC0,
@@ -110,6 +111,21 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return min(max(x, lo), hi)
 
 
+class ControlWork(NamedTuple):
+    """Scratch of one controller update, allocated once per fused loop (:func:`control_work`), so a
+    tick allocates nothing."""
+
+    Rd: np.ndarray  # (3, 3) the desired attitude, body -> NED
+    quats: np.ndarray  # (3, 4) the attitude setpoint, the inverse attitude, the attitude error
+    alloc: np.ndarray  # (4, MAX_ROTORS) allocation: collective, roll/pitch, yaw, total thrust per rotor, N
+
+
+@njit(cache=True)
+def control_work() -> ControlWork:
+    """A fresh :class:`ControlWork` (once per fused loop, not per tick)."""
+    return ControlWork(np.zeros((3, 3)), np.zeros((3, 4)), np.zeros((4, MAX_ROTORS)))
+
+
 @njit(cache=True)
 def control(
     x: np.ndarray,
@@ -119,136 +135,163 @@ def control(
     p: np.ndarray,
     dt: float,
     out_accel_sp: np.ndarray,
-) -> np.ndarray:
-    """One controller update. Returns rotor speed commands (MAX_ROTORS,), rad/s.
+    w_cmd: np.ndarray,
+    wk: ControlWork,
+) -> None:
+    """One controller update: rotor speed commands (MAX_ROTORS,) rad/s into ``w_cmd``.
 
     ``cs`` is the controller memory (integrators), updated in place. ``out_accel_sp``
-    receives the commanded NED acceleration (m/s^2) for telemetry.
+    receives the commanded NED acceleration (m/s^2) for telemetry. ``wk``: scratch.
     """
     flags = int(sp[SP_FLAGS])
-    w_cmd = np.zeros(MAX_ROTORS)
     if flags & F_OFF:
         cs[:] = 0.0
         out_accel_sp[:] = 0.0
-        return w_cmd
-    m = p[P_MASS]
-    grav = p[P_G]
-    q = x[6:10]
-    rates = x[10:13]
+        w_cmd[:] = 0.0
+        return
+    q_sp, qi, qe = wk.quats[0], wk.quats[1], wk.quats[2]
     if flags & F_ATT:
-        q_sp = sp[SP_ATT:SP_ATT + 4].copy()
+        q_sp[:] = sp[SP_ATT:SP_ATT + 4]
         thrust = _clip(sp[SP_THRUST], 0.0, 1.0) * _max_thrust(p)
-        yawrate_ff = sp[SP_YAWRATE]
         out_accel_sp[:] = 0.0
     else:
-        # --- position -> velocity
-        vel_sp = np.zeros(3)
-        if flags & F_VEL:
-            vel_sp[:] = sp[SP_VEL:SP_VEL + 3]
-        if flags & F_POS:
-            vel_sp[0] += g[G_POS_P_XY] * (sp[SP_POS] - x[0])
-            vel_sp[1] += g[G_POS_P_XY] * (sp[SP_POS + 1] - x[1])
-            vel_sp[2] += g[G_POS_P_Z] * (sp[SP_POS + 2] - x[2])
-        vh = math.hypot(vel_sp[0], vel_sp[1])
-        if vh > g[G_VEL_MAX_XY]:
-            vel_sp[0] *= g[G_VEL_MAX_XY] / vh
-            vel_sp[1] *= g[G_VEL_MAX_XY] / vh
-        vel_sp[2] = _clip(vel_sp[2], -g[G_VEL_MAX_UP], g[G_VEL_MAX_DN])
-        # --- velocity -> acceleration (PID, integrator with anti-windup clamp)
-        acc = np.zeros(3)
-        if flags & F_ACC:
-            acc[:] = sp[SP_ACC:SP_ACC + 3]
-        lim = g[G_VEL_INT_LIM]
-        for i in range(3):
-            e = vel_sp[i] - x[3 + i]
-            kp = g[G_VEL_P_Z] if i == 2 else g[G_VEL_P_XY]
-            ki = g[G_VEL_I_Z] if i == 2 else g[G_VEL_I_XY]
-            cs[i] = _clip(cs[i] + ki * e * dt, -lim, lim)
-            acc[i] += kp * e + cs[i]
-        ah = math.hypot(acc[0], acc[1])
-        if ah > g[G_ACC_MAX_XY]:
-            acc[0] *= g[G_ACC_MAX_XY] / ah
-            acc[1] *= g[G_ACC_MAX_XY] / ah
-        out_accel_sp[:] = acc
-        # --- acceleration -> thrust vector (specific force f = a - g e3), tilt limited
-        f = np.array([acc[0], acc[1], min(acc[2] - grav, -0.2 * grav)])
-        fh = math.hypot(f[0], f[1])
-        max_h = -f[2] * math.tan(g[G_TILT_MAX])
-        if fh > max_h:
-            f[0] *= max_h / fh
-            f[1] *= max_h / fh
-        fn = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
-        thrust = m * fn
-        zb = -f / fn
-        if flags & F_YAW:
-            yaw_sp = sp[SP_YAW]
-        else:
-            yaw_sp = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
-        xc = np.array([math.cos(yaw_sp), math.sin(yaw_sp), 0.0])
-        yb = np.cross(zb, xc)
-        yb /= math.sqrt(yb[0] ** 2 + yb[1] ** 2 + yb[2] ** 2)
-        xb = np.cross(yb, zb)
-        Rd = np.empty((3, 3))
-        Rd[:, 0] = xb
-        Rd[:, 1] = yb
-        Rd[:, 2] = zb
-        q_sp = dcm_to_quat(Rd)
-        yawrate_ff = sp[SP_YAWRATE]
+        thrust = _attitude_setpoint(x, sp, g, cs, p, dt, out_accel_sp, wk.Rd, q_sp)
+    yawrate_ff = sp[SP_YAWRATE]
     # --- attitude -> body rates: q_err = q^-1 * q_sp, rate = 2 K sign(w) v
-    qi = np.array([q[0], -q[1], -q[2], -q[3]])
-    qe = quat_mul(qi, q_sp)
+    qi[0], qi[1], qi[2], qi[3] = x[6], -x[7], -x[8], -x[9]
+    quat_mul_into(qi, q_sp, qe)
     s = 1.0 if qe[0] >= 0.0 else -1.0
-    rate_sp = np.empty(3)
-    rate_sp[0] = _clip(2.0 * s * qe[1] * g[G_ATT_P_RP], -g[G_RATE_MAX_RP], g[G_RATE_MAX_RP])
-    rate_sp[1] = _clip(2.0 * s * qe[2] * g[G_ATT_P_RP], -g[G_RATE_MAX_RP], g[G_RATE_MAX_RP])
-    rate_sp[2] = _clip(
-        2.0 * s * qe[3] * g[G_ATT_P_YAW] + yawrate_ff, -g[G_RATE_MAX_YAW], g[G_RATE_MAX_YAW]
-    )
+    rs0 = _clip(2.0 * s * qe[1] * g[G_ATT_P_RP], -g[G_RATE_MAX_RP], g[G_RATE_MAX_RP])
+    rs1 = _clip(2.0 * s * qe[2] * g[G_ATT_P_RP], -g[G_RATE_MAX_RP], g[G_RATE_MAX_RP])
+    rs2 = _clip(2.0 * s * qe[3] * g[G_ATT_P_YAW] + yawrate_ff, -g[G_RATE_MAX_YAW], g[G_RATE_MAX_YAW])
     # --- rates -> moments: I * (PI + D on measurement) + gyroscopic + damping feed-forward
-    inertia = np.array([p[P_IXX], p[P_IYY], p[P_IZZ]])
-    ang_acc = np.empty(3)
     ilim = g[G_RATE_INT_LIM]
-    for i in range(3):
-        e = rate_sp[i] - rates[i]
-        kp = g[G_RATE_P_YAW] if i == 2 else g[G_RATE_P_RP]
-        ki = g[G_RATE_I_YAW] if i == 2 else g[G_RATE_I_RP]
-        kd = 0.0 if i == 2 else g[G_RATE_D_RP]
-        cs[3 + i] = _clip(cs[3 + i] + ki * e * dt, -ilim, ilim)
-        d = (rates[i] - cs[6 + i]) / dt
-        cs[6 + i] = rates[i]
-        ang_acc[i] = kp * e + cs[3 + i] - kd * d
-    mom = inertia * ang_acc
-    iw = inertia * rates
-    mom += np.cross(rates, iw)
+    aa0 = _rate_pid(0, rs0, x[10], g, cs, dt, ilim)
+    aa1 = _rate_pid(1, rs1, x[11], g, cs, dt, ilim)
+    aa2 = _rate_pid(2, rs2, x[12], g, cs, dt, ilim)
+    ixx, iyy, izz = p[P_IXX], p[P_IYY], p[P_IZZ]
+    r0, r1, r2 = x[10], x[11], x[12]
+    iw0, iw1, iw2 = ixx * r0, iyy * r1, izz * r2
+    # (the sums in numpy's order: I * alpha, plus rates x I w, then the damping feed-forward)
+    m0 = ixx * aa0 + (r1 * iw2 - r2 * iw1)
+    m1 = iyy * aa1 + (r2 * iw0 - r0 * iw2)
+    m2 = izz * aa2 + (r0 * iw1 - r1 * iw0)
     # The rotors damp body rates (blade flapping, inflow): feed the damping at the rate setpoint
     # forward so the PI loop only corrects the residual.
-    for i in range(3):
-        mom[i] -= p[P_DAMP_P + i] * rate_sp[i]
-    return allocate(thrust, mom, p, w_cmd)
+    m0 -= p[P_DAMP_P] * rs0
+    m1 -= p[P_DAMP_P + 1] * rs1
+    m2 -= p[P_DAMP_P + 2] * rs2
+    allocate(thrust, m0, m1, m2, p, w_cmd, wk.alloc)
+
+
+@njit(cache=True, inline="always")
+def _rate_pid(i: int, rate_sp: float, rate: float, g: np.ndarray, cs: np.ndarray, dt: float, ilim: float) -> float:
+    """The rate loop of body axis ``i`` (rad/s in): its angular acceleration command, rad/s^2; the
+    integrator and the previous rate in ``cs`` updated."""
+    e = rate_sp - rate
+    kp = g[G_RATE_P_YAW] if i == 2 else g[G_RATE_P_RP]
+    ki = g[G_RATE_I_YAW] if i == 2 else g[G_RATE_I_RP]
+    kd = 0.0 if i == 2 else g[G_RATE_D_RP]
+    cs[3 + i] = _clip(cs[3 + i] + ki * e * dt, -ilim, ilim)
+    d = (rate - cs[6 + i]) / dt
+    cs[6 + i] = rate
+    return kp * e + cs[3 + i] - kd * d
 
 
 @njit(cache=True)
-def allocate(thrust: float, mom: np.ndarray, p: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """Rotor speeds (rad/s) for a collective thrust (N) and moments (N*m, FRD): per-rotor thrusts from
-    the allocation matrix (``P_ALLOC0``), with saturation handled as PX4 does: yaw is given up first,
-    then roll/pitch is scaled, then the collective shifts (attitude over thrust). Thrust -> speed by
-    the rotor's static thrust curve."""
+def _attitude_setpoint(
+    x: np.ndarray, sp: np.ndarray, g: np.ndarray, cs: np.ndarray, p: np.ndarray, dt: float,
+    out_accel_sp: np.ndarray, Rd: np.ndarray, q_sp: np.ndarray,
+) -> float:  # fmt: skip
+    """Position -> velocity -> acceleration -> thrust vector: the attitude setpoint into ``q_sp``
+    (body -> NED) and the collective thrust (N, returned). ``Rd`` (3, 3): scratch."""
+    flags = int(sp[SP_FLAGS])
+    # --- position -> velocity
+    v0 = v1 = v2 = 0.0
+    if flags & F_VEL:
+        v0, v1, v2 = sp[SP_VEL], sp[SP_VEL + 1], sp[SP_VEL + 2]
+    if flags & F_POS:
+        v0 += g[G_POS_P_XY] * (sp[SP_POS] - x[0])
+        v1 += g[G_POS_P_XY] * (sp[SP_POS + 1] - x[1])
+        v2 += g[G_POS_P_Z] * (sp[SP_POS + 2] - x[2])
+    vh = math.hypot(v0, v1)
+    if vh > g[G_VEL_MAX_XY]:
+        v0 *= g[G_VEL_MAX_XY] / vh
+        v1 *= g[G_VEL_MAX_XY] / vh
+    v2 = _clip(v2, -g[G_VEL_MAX_UP], g[G_VEL_MAX_DN])
+    # --- velocity -> acceleration (PID, integrator with anti-windup clamp)
+    a0 = a1 = a2 = 0.0
+    if flags & F_ACC:
+        a0, a1, a2 = sp[SP_ACC], sp[SP_ACC + 1], sp[SP_ACC + 2]
+    lim = g[G_VEL_INT_LIM]
+    a0 += _vel_pi(0, v0, x[3], g, cs, dt, lim)
+    a1 += _vel_pi(1, v1, x[4], g, cs, dt, lim)
+    a2 += _vel_pi(2, v2, x[5], g, cs, dt, lim)
+    ah = math.hypot(a0, a1)
+    if ah > g[G_ACC_MAX_XY]:
+        a0 *= g[G_ACC_MAX_XY] / ah
+        a1 *= g[G_ACC_MAX_XY] / ah
+    out_accel_sp[0], out_accel_sp[1], out_accel_sp[2] = a0, a1, a2
+    # --- acceleration -> thrust vector (specific force f = a - g e3), tilt limited
+    grav = p[P_G]
+    f0, f1, f2 = a0, a1, min(a2 - grav, -0.2 * grav)
+    fh = math.hypot(f0, f1)
+    max_h = -f2 * math.tan(g[G_TILT_MAX])
+    if fh > max_h:
+        f0 *= max_h / fh
+        f1 *= max_h / fh
+    fn = math.sqrt(f0**2 + f1**2 + f2**2)
+    thrust = p[P_MASS] * fn
+    z0, z1, z2 = -f0 / fn, -f1 / fn, -f2 / fn
+    if flags & F_YAW:
+        yaw_sp = sp[SP_YAW]
+    else:
+        yaw_sp = math.atan2(2 * (x[6] * x[9] + x[7] * x[8]), 1 - 2 * (x[8] ** 2 + x[9] ** 2))
+    c0, c1, c2 = math.cos(yaw_sp), math.sin(yaw_sp), 0.0
+    # body y = z x c (normalized), body x = y x z: the cross products as numpy's np.cross forms them
+    y0, y1, y2 = z1 * c2 - z2 * c1, z2 * c0 - z0 * c2, z0 * c1 - z1 * c0
+    yn = math.sqrt(y0**2 + y1**2 + y2**2)
+    y0, y1, y2 = y0 / yn, y1 / yn, y2 / yn
+    Rd[0, 0], Rd[1, 0], Rd[2, 0] = y1 * z2 - y2 * z1, y2 * z0 - y0 * z2, y0 * z1 - y1 * z0
+    Rd[0, 1], Rd[1, 1], Rd[2, 1] = y0, y1, y2
+    Rd[0, 2], Rd[1, 2], Rd[2, 2] = z0, z1, z2
+    dcm_to_quat_into(Rd, q_sp)
+    return thrust
+
+
+@njit(cache=True, inline="always")
+def _vel_pi(i: int, vel_sp: float, vel: float, g: np.ndarray, cs: np.ndarray, dt: float, lim: float) -> float:
+    """The velocity loop of NED axis ``i`` (m/s in): its acceleration command, m/s^2; the integrator updated."""
+    e = vel_sp - vel
+    kp = g[G_VEL_P_Z] if i == 2 else g[G_VEL_P_XY]
+    ki = g[G_VEL_I_Z] if i == 2 else g[G_VEL_I_XY]
+    cs[i] = _clip(cs[i] + ki * e * dt, -lim, lim)
+    return kp * e + cs[i]
+
+
+@njit(cache=True)
+def allocate(thrust: float, m0: float, m1: float, m2: float, p: np.ndarray, out: np.ndarray,
+             work: np.ndarray) -> None:  # fmt: skip
+    """Rotor speeds (rad/s) into ``out`` for a collective thrust (N) and moments ``m0, m1, m2`` (N*m,
+    FRD): per-rotor thrusts from the allocation matrix (``P_ALLOC0``), with saturation handled as PX4
+    does: yaw is given up first, then roll/pitch is scaled, then the collective shifts (attitude over
+    thrust). Thrust -> speed by the rotor's static thrust curve. ``work`` (4, MAX_ROTORS): scratch."""
     n = int(p[P_NROT])
     kt2, kt1 = p[P_KT2], p[P_KT1]
     t_min = kt2 * p[P_WMIN] ** 2 + kt1 * p[P_WMIN]
     t_max = kt2 * p[P_WMAX] ** 2 + kt1 * p[P_WMAX]
-    base = np.empty(n)
-    d = np.empty(n)
-    y = np.empty(n)
+    base, d, y, t = work[0, :n], work[1, :n], work[2, :n], work[3, :n]
     for i in range(n):
         a = P_ALLOC0 + 4 * i
         base[i] = p[a] * thrust
-        d[i] = p[a + 1] * mom[0] + p[a + 2] * mom[1]
-        y[i] = p[a + 3] * mom[2]
+        d[i] = p[a + 1] * m0 + p[a + 2] * m1
+        y[i] = p[a + 3] * m2
     # Roll/pitch alone: scale down if the span cannot fit between the limits at all.
     span = d.max() - d.min()
     if span > t_max - t_min:
-        d *= (t_max - t_min) / span
+        c = (t_max - t_min) / span
+        for i in range(n):
+            d[i] *= c
     # Yaw: largest fraction that still fits with roll/pitch at the current collective.
     scale_y = 1.0
     for i in range(n):
@@ -257,19 +300,23 @@ def allocate(thrust: float, mom: np.ndarray, p: np.ndarray, out: np.ndarray) -> 
             scale_y = min(scale_y, max(0.0, (t_max - base[i] - d[i]) / y[i]))
         elif tot < t_min and y[i] < 0.0:
             scale_y = min(scale_y, max(0.0, (t_min - base[i] - d[i]) / y[i]))
-    t = base + d + scale_y * y
+    for i in range(n):
+        t[i] = base[i] + d[i] + scale_y * y[i]
     # Shift the collective to bring everything inside the limits.
     top = t.max()
     bot = t.min()
     if top > t_max:
-        t -= top - t_max
+        shift = top - t_max
+        for i in range(n):
+            t[i] -= shift
     elif bot < t_min:
-        t += t_min - bot
+        shift = t_min - bot
+        for i in range(n):
+            t[i] += shift
     out[:] = 0.0
     for i in range(n):
         ti = min(max(t[i], t_min), t_max)
         out[i] = (-kt1 + math.sqrt(kt1 * kt1 + 4.0 * kt2 * ti)) / (2.0 * kt2)
-    return out
 
 
 @njit(cache=True)

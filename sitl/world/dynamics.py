@@ -17,12 +17,14 @@ keeps the quaternion the only rotating quantity.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from vehicle.frames import quat_to_dcm
+from vehicle.frames import quat_to_dcm_into
 from vehicle.params import MAX_ROTORS, P_G, P_IXX, P_IYY, P_IZZ, P_MASS, P_NROT, P_TAU, P_WMAX, P_WMIN
+from vehicle.rotor_model import N_COEF
 from vehicle.truth import truth_wrench
 
 IX_POS, IX_VEL, IX_QUAT, IX_RATES, IX_ROTORS = 0, 3, 6, 10, 13
@@ -30,39 +32,76 @@ IX_INFLOW = IX_ROTORS + MAX_ROTORS
 N_STATE = IX_INFLOW + MAX_ROTORS
 
 
+class PhysicsWork(NamedTuple):
+    """Scratch a physics tick works in, allocated once per physics loop (:func:`physics_work`), so a
+    tick allocates nothing: the RK4 stages, the attitude matrix and the force model's buffers."""
+
+    stages: np.ndarray  # (6, N_STATE): k1, k2, k3, k4, the stage's state, the new state
+    R: np.ndarray  # (3, 3) body -> NED
+    fm: np.ndarray  # (6,) forces N and moments N*m, FRD
+    air: np.ndarray  # (3,) airspeed at the CG, FRD, m/s
+    loads: np.ndarray  # (6,) one rotor's loads
+    hubs: np.ndarray  # (MAX_ROTORS, 3) airspeed at each hub, FRD, m/s
+    reg: np.ndarray  # (N_COEF,) the identified model's regressors
+    accel: np.ndarray  # (3,) specific force of the stages after the first (discarded)
+
+
+S_K1, S_K2, S_K3, S_K4, S_XT, S_XN = range(6)
+
+
+@njit(cache=True)
+def physics_work() -> PhysicsWork:
+    """A fresh :class:`PhysicsWork` (once per physics loop, not per tick)."""
+    return PhysicsWork(np.zeros((6, N_STATE)), np.zeros((3, 3)), np.zeros(6), np.zeros(3), np.zeros(6),
+                       np.zeros((MAX_ROTORS, 3)), np.zeros(N_COEF), np.zeros(3))  # fmt: skip
+
+
 @njit(cache=True)
 def derivative(
     x: np.ndarray, w_cmd: np.ndarray, winds: np.ndarray, p: np.ndarray, out_accel_body: np.ndarray
 ) -> np.ndarray:
-    """dx/dt for the state above. ``winds`` (1 + N, 3): air-mass velocity (NED, m/s) at the CG and at
-    each hub. ``out_accel_body`` receives the specific force (FRD, m/s^2: non-gravitational force over
-    mass), which is what an accelerometer measures."""
+    """dx/dt for the state above (a new array; see :func:`derivative_into`)."""
     dx = np.zeros(N_STATE)
-    q = x[6:10]
-    R = quat_to_dcm(q)
-    rates = x[10:13]
+    derivative_into(x, w_cmd, winds, p, out_accel_body, dx, physics_work())
+    return dx
+
+
+@njit(cache=True)
+def derivative_into(
+    x: np.ndarray, w_cmd: np.ndarray, winds: np.ndarray, p: np.ndarray, out_accel_body: np.ndarray,
+    dx: np.ndarray, wk: PhysicsWork,
+) -> None:  # fmt: skip
+    """dx/dt for the state above into ``dx`` (N_STATE,). ``winds`` (1 + N, 3): air-mass velocity
+    (NED, m/s) at the CG and at each hub. ``out_accel_body`` receives the specific force (FRD, m/s^2:
+    non-gravitational force over mass), which is what an accelerometer measures. ``wk``: scratch."""
+    R = wk.R
+    quat_to_dcm_into(x[6:10], R)
     n = int(p[P_NROT])
-    w_rot = x[IX_ROTORS:IX_ROTORS + MAX_ROTORS]
-    # Motor: first-order lag toward the (clipped) command.
+    # Motor: first-order lag toward the (clipped) command; slots past the vehicle's rotors stay zero.
     tau = p[P_TAU]
-    w_rot_dot = np.zeros(MAX_ROTORS)
+    for i in range(MAX_ROTORS):
+        dx[IX_ROTORS + i] = 0.0
+        dx[IX_INFLOW + i] = 0.0
     for i in range(n):
         c = min(max(w_cmd[i], 0.0), p[P_WMAX])
-        w_rot_dot[i] = (c - w_rot[i]) / tau
-    vi_dot = np.zeros(MAX_ROTORS)
-    fm = truth_wrench(R, x[3:6], rates, winds, w_rot, w_rot_dot, x[IX_INFLOW:N_STATE], p, vi_dot)
+        dx[IX_ROTORS + i] = (c - x[IX_ROTORS + i]) / tau
+    fm = wk.fm
+    truth_wrench(R, x[3:6], x[10:13], winds, x[IX_ROTORS:IX_ROTORS + MAX_ROTORS], dx[IX_ROTORS:IX_ROTORS + MAX_ROTORS],
+                 x[IX_INFLOW:N_STATE], p, dx[IX_INFLOW:N_STATE], fm, wk.air, wk.hubs, wk.loads, wk.reg)  # fmt: skip
     m = p[P_MASS]
     fb0, fb1, fb2 = fm[0] / m, fm[1] / m, fm[2] / m
     out_accel_body[0] = fb0
     out_accel_body[1] = fb1
     out_accel_body[2] = fb2
-    dx[0:3] = x[3:6]
+    dx[0] = x[3]
+    dx[1] = x[4]
+    dx[2] = x[5]
     for i in range(3):
         dx[3 + i] = R[i, 0] * fb0 + R[i, 1] * fb1 + R[i, 2] * fb2
     dx[5] += p[P_G]
     # Quaternion kinematics (Eq. 1b): q_dot = 0.5 q * [0, omega].
-    pr, qr, rr = rates[0], rates[1], rates[2]
-    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
+    pr, qr, rr = x[10], x[11], x[12]
+    qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     dx[6] = 0.5 * (-qx * pr - qy * qr - qz * rr)
     dx[7] = 0.5 * (qw * pr + qy * rr - qz * qr)
     dx[8] = 0.5 * (qw * qr - qx * rr + qz * pr)
@@ -72,9 +111,6 @@ def derivative(
     dx[10] = (fm[3] - (izz - iyy) * qr * rr) / ixx
     dx[11] = (fm[4] - (ixx - izz) * pr * rr) / iyy
     dx[12] = (fm[5] - (iyy - ixx) * pr * qr) / izz
-    dx[IX_ROTORS:IX_ROTORS + MAX_ROTORS] = w_rot_dot
-    dx[IX_INFLOW:N_STATE] = vi_dot
-    return dx
 
 
 @njit(cache=True)
@@ -86,35 +122,52 @@ def rk4_step(
     dt: float,
     on_ground: bool,
     accel_body: np.ndarray,
-) -> tuple[np.ndarray, bool, float]:
-    """Advance one fixed step with RK4 and resolve ground contact.
+    wk: PhysicsWork,
+) -> tuple[bool, float]:
+    """Advance one fixed step with RK4 and resolve ground contact; the new state goes to
+    ``wk.stages[S_XN]``.
 
-    The winds and the rotor command are held over the step. Returns the new state, whether the
-    vehicle rests on the ground, and the touchdown vertical speed (m/s, 0 if none).
-    ``accel_body`` receives the specific force at the start of the step (the accelerometer
-    truth), with the ground reaction included while resting.
+    The winds and the rotor command are held over the step. Returns whether the vehicle rests on
+    the ground, and the touchdown vertical speed (m/s, 0 if none). ``accel_body`` receives the
+    specific force at the start of the step (the accelerometer truth), with the ground reaction
+    included while resting. The stage sums are written element by element in the order numpy's
+    expressions ``x + 0.5 * dt * k1`` ... evaluate them, so the result is the same bit for bit.
     """
-    k1 = derivative(x, w_cmd, winds, p, accel_body)
-    scratch = np.empty(3)
+    st = wk.stages
+    k1, k2, k3, k4, xt, xn = st[S_K1], st[S_K2], st[S_K3], st[S_K4], st[S_XT], st[S_XN]
+    derivative_into(x, w_cmd, winds, p, accel_body, k1, wk)
     if on_ground and k1[5] >= 0.0:
         # Resting: rotor thrust does not exceed weight. Only the motors and their inflow evolve; the
         # ground carries the rest, so the accelerometer reads -g along world down.
-        xn = x.copy()
-        xn[IX_ROTORS:IX_ROTORS + MAX_ROTORS] = _rotor_exact(x[IX_ROTORS:IX_ROTORS + MAX_ROTORS], w_cmd, p, dt)
+        xn[:] = x
+        _rotor_exact(x[IX_ROTORS:IX_ROTORS + MAX_ROTORS], w_cmd, p, dt, xn[IX_ROTORS:IX_ROTORS + MAX_ROTORS])
         # The inflow (time constant >= 10 ms against the 2 ms step): one explicit Euler step.
-        xn[IX_INFLOW:N_STATE] = x[IX_INFLOW:N_STATE] + dt * k1[IX_INFLOW:N_STATE]
+        for i in range(IX_INFLOW, N_STATE):
+            xn[i] = x[i] + dt * k1[i]
         xn[3:6] = 0.0
         xn[10:13] = 0.0
-        R = quat_to_dcm(x[6:10])
+        R = wk.R
+        quat_to_dcm_into(x[6:10], R)
         for i in range(3):
             accel_body[i] = -p[P_G] * R[2, i]
-        return xn, True, 0.0
-    k2 = derivative(x + 0.5 * dt * k1, w_cmd, winds, p, scratch)
-    k3 = derivative(x + 0.5 * dt * k2, w_cmd, winds, p, scratch)
-    k4 = derivative(x + dt * k3, w_cmd, winds, p, scratch)
-    xn = x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        return True, 0.0
+    half = 0.5 * dt
+    acc = wk.accel
+    for i in range(N_STATE):
+        xt[i] = x[i] + half * k1[i]
+    derivative_into(xt, w_cmd, winds, p, acc, k2, wk)
+    for i in range(N_STATE):
+        xt[i] = x[i] + half * k2[i]
+    derivative_into(xt, w_cmd, winds, p, acc, k3, wk)
+    for i in range(N_STATE):
+        xt[i] = x[i] + dt * k3[i]
+    derivative_into(xt, w_cmd, winds, p, acc, k4, wk)
+    sixth = dt / 6.0
+    for i in range(N_STATE):
+        xn[i] = x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     n = math.sqrt(xn[6] ** 2 + xn[7] ** 2 + xn[8] ** 2 + xn[9] ** 2)
-    xn[6:10] /= n
+    for i in range(6, 10):
+        xn[i] /= n
     for i in range(IX_ROTORS, IX_ROTORS + MAX_ROTORS):
         xn[i] = min(max(xn[i], 0.0), p[P_WMAX])
     if xn[2] >= 0.0:
@@ -130,18 +183,18 @@ def rk4_step(
         xn[7] = 0.0
         xn[8] = 0.0
         xn[9] = math.sin(yaw / 2)
-        return xn, True, max(vz, 0.0)
-    return xn, False, 0.0
+        return True, max(vz, 0.0)
+    return False, 0.0
 
 
 @njit(cache=True)
-def _rotor_exact(w: np.ndarray, w_cmd: np.ndarray, p: np.ndarray, dt: float) -> np.ndarray:
+def _rotor_exact(w: np.ndarray, w_cmd: np.ndarray, p: np.ndarray, dt: float, out: np.ndarray) -> None:
+    """The rotor speeds (rad/s) after ``dt`` s of the first-order lag toward the clipped command, into ``out``."""
     a = math.exp(-dt / p[P_TAU])
-    out = np.zeros(MAX_ROTORS)
+    out[:] = 0.0
     for i in range(int(p[P_NROT])):
         c = min(max(w_cmd[i], 0.0), p[P_WMAX])
         out[i] = c + (w[i] - c) * a
-    return out
 
 
 @njit(cache=True)

@@ -22,10 +22,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from sitl.world.dynamics import rk4_step
+from sitl.world.dynamics import S_XN, PhysicsWork, physics_work, rk4_step
 from sitl.world.wind.kernel import WindKernel, open_wind, urban_wind
 from urbanflow.geometry import building_at
-from vehicle.frames import quat_to_dcm
+from vehicle.frames import quat_to_dcm_into
 from vehicle.params import MAX_ROTORS, P_NROT, P_ROT0, P_TRUTH, TRUTH_BET
 
 T_TIME = 0
@@ -60,17 +60,19 @@ NO_OBSTACLES = Obstacles(np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros
 def physics_tick(
     tick: int, dt: float, x: np.ndarray, w_cmd: np.ndarray, winds: np.ndarray, flags: np.ndarray,
     p: np.ndarray, crash_speed: float, imu_div: int, rows: np.ndarray, nrow: int, fb: np.ndarray,
-    obs: Obstacles,
+    obs: Obstacles, wk: PhysicsWork,
 ) -> int:  # fmt: skip
     """One physics tick in place with the rotor command ``w_cmd`` (rad/s) and the winds ``winds``
     (1 + N, 3; NED, m/s: at the CG, then at each hub; see :func:`sample_winds`) held over it. Returns
     the number of truth rows written so far (``nrow`` + 0 or 1). A step that would end inside a
-    building is a crash: the vehicle stays where it hit, stopped."""
+    building is a crash: the vehicle stays where it hit, stopped. ``wk``: the loop's scratch
+    (:func:`sitl.world.dynamics.physics_work`, allocated once per loop)."""
     on_ground = flags[FLAG_ON_GROUND] != 0.0
-    xn, og, vtd = rk4_step(x, w_cmd, winds, p, dt, on_ground, fb)
+    og, vtd = rk4_step(x, w_cmd, winds, p, dt, on_ground, fb, wk)
+    xn = wk.stages[S_XN]
     if obs.heights.shape[0] > 0 and building_at(xn[0], xn[1], -xn[2], obs.verts, obs.offsets, obs.heights,
                                                 obs.bbox) >= 0:  # fmt: skip
-        xn = x.copy()
+        xn[:] = x
         xn[3:6] = 0.0
         xn[10:13] = 0.0
         flags[FLAG_CRASHED] = 1.0
@@ -98,17 +100,19 @@ def physics_tick(
 
 @njit(cache=True, inline="always")
 def sample_winds(
-    t: float, x: np.ndarray, p: np.ndarray, winds: np.ndarray, st: np.ndarray, sv: np.ndarray, lp: bool, z0: float,
-    il: float, to: bool, ta: bool, tr: float, uvw: np.ndarray, uo: bool, ugp: np.ndarray, un: np.ndarray,
-    ve: np.ndarray, wd: np.ndarray, uwp: np.ndarray, tm: np.ndarray, vt: np.ndarray, of: np.ndarray, ht: np.ndarray,
-    bb: np.ndarray,
+    t: float, x: np.ndarray, p: np.ndarray, winds: np.ndarray, R: np.ndarray, st: np.ndarray, sv: np.ndarray,
+    lp: bool, z0: float, il: float, to: bool, ta: bool, tr: float, uvw: np.ndarray, uo: bool, ugp: np.ndarray,
+    un: np.ndarray, ve: np.ndarray, wd: np.ndarray, uwp: np.ndarray, tm: np.ndarray, vt: np.ndarray, of: np.ndarray,
+    ht: np.ndarray, bb: np.ndarray,
 ) -> None:  # fmt: skip
     """The winds a tick holds, into ``winds`` (1 + N, 3), air-mass velocity NED m/s: row 0 at the CG
     (the truth rows' wind), rows 1..N at the rotor hubs (NED position + R r_i) when the truth is
-    blade-element (the turbulence's gradients across the airframe act on it). The arguments after
+    blade-element (the turbulence's gradients across the airframe act on it; ``R`` (3, 3) receives
+    the attitude matrix body -> NED then). The arguments after
     ``winds`` are the :class:`WindKernel` fields, unpacked once by the caller (see wind.kernel)."""
     n = int(p[P_NROT]) if p[P_TRUTH] == TRUTH_BET else 0
-    R = quat_to_dcm(x[6:10]) if n > 0 else np.eye(3)
+    if n > 0:
+        quat_to_dcm_into(x[6:10], R)
     for k in range(n + 1):
         px, py, pz = x[0], x[1], x[2]
         if k > 0:
@@ -134,11 +138,12 @@ def advance_commanded(
     nrow = 0
     stopped = np.zeros(MAX_ROTORS)
     winds = np.zeros((1 + MAX_ROTORS, 3))
+    wrk = physics_work()
     st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of, ht, bb = wk  # once: see wind.kernel
     for k in range(n):
         tick = tick0 + k
-        sample_winds(tick * dt, x, p, winds, st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm, vt, of,
-                     ht, bb)  # fmt: skip
+        sample_winds(tick * dt, x, p, winds, wrk.R, st, sv, lp, z0, il, to, ta, tr, uvw, uo, ugp, un, ve, wd, uwp, tm,
+                     vt, of, ht, bb)  # fmt: skip
         cmd = stopped if flags[FLAG_CRASHED] != 0.0 else w_cmd
-        nrow = physics_tick(tick, dt, x, cmd, winds, flags, p, crash_speed, imu_div, rows, nrow, fb, obs)
+        nrow = physics_tick(tick, dt, x, cmd, winds, flags, p, crash_speed, imu_div, rows, nrow, fb, obs, wrk)
     return nrow
