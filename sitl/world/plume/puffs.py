@@ -22,6 +22,7 @@ from sitl.world.plume.meander import (
     frozen_turbulence_variances,
     meander_at,
 )
+from sitl.world.plume.store import PuffStore
 from urbanflow.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
@@ -52,15 +53,28 @@ def _reflect_puffs(
 
 
 @njit(cache=True)
+def _physical(pos: np.ndarray, out: np.ndarray) -> None:
+    """Physical NED positions (K, 3) m of puffs ``pos`` (x, y NED, unfolded altitude up) into ``out``."""
+    for i in range(pos.shape[0]):
+        out[i, 0] = pos[i, 0]
+        out[i, 1] = pos[i, 1]
+        out[i, 2] = -abs(pos[i, 2])
+
+
+@njit(cache=True)
 def _advance_puffs(
     pos: np.ndarray,
     r2: np.ndarray,
     unit: np.ndarray,
-    refresh: np.ndarray,
+    serial: np.ndarray,
+    n_groups: int,
+    group: int,
     vel: np.ndarray,
     noise: np.ndarray,
-    scale: np.ndarray,
-    walk: np.ndarray,
+    s_xy: float,
+    s_z: float,
+    w_xy: float,
+    w_z: float,
     growth: float,
     h: float,
     offset: np.ndarray,
@@ -71,18 +85,19 @@ def _advance_puffs(
     """One puff substep of ``h`` [s], in place.
 
     pos (K,3): x, y NED and unfolded altitude (up) [m]; r2 (K,) [m^2]; unit (K,3): cached
-    unit meander, re-sampled at the pre-step position where ``refresh`` (K,) is True or the
-    cache is NaN; vel (K,3): wind NED [m/s] at the physical puff positions; noise (K,3):
-    standard normals; scale (3,): meander sigma per axis [m/s]; walk (3,): random-walk step
-    standard deviation [m]; growth: r^2 growth rate [m^2/s]; offset/k/phase/amp: meander."""
+    unit meander, re-sampled at the pre-step position for the puffs whose ``serial`` (K,) falls in
+    ``group`` (serial mod ``n_groups``) or whose cache is NaN; vel (K,3): wind NED [m/s] at the
+    physical puff positions; noise (K,3): standard normals; s_xy, s_z: meander sigma, horizontal
+    and vertical [m/s]; w_xy, w_z: random-walk step standard deviation [m]; growth: r^2 growth
+    rate [m^2/s]; offset/k/phase/amp: meander."""
     n = pos.shape[0]
     for i in range(n):
-        if refresh[i] or math.isnan(unit[i, 0]):
+        if serial[i] % n_groups == group or math.isnan(unit[i, 0]):
             meander_at(pos[i, 0], pos[i, 1], offset, k, phase, amp, unit[i])
         # Vertical in the unfolded coordinate: NED velocity is down, altitude is up.
-        pos[i, 0] += (vel[i, 0] + unit[i, 0] * scale[0]) * h + noise[i, 0] * walk[0]
-        pos[i, 1] += (vel[i, 1] + unit[i, 1] * scale[1]) * h + noise[i, 1] * walk[1]
-        pos[i, 2] += (-vel[i, 2] + unit[i, 2] * scale[2]) * h + noise[i, 2] * walk[2]
+        pos[i, 0] += (vel[i, 0] + unit[i, 0] * s_xy) * h + noise[i, 0] * w_xy
+        pos[i, 1] += (vel[i, 1] + unit[i, 1] * s_xy) * h + noise[i, 1] * w_xy
+        pos[i, 2] += (-vel[i, 2] + unit[i, 2] * s_z) * h + noise[i, 2] * w_z
         r2[i] += growth * h
 
 
@@ -191,12 +206,9 @@ class PuffPlume:
             self._dom_hi: np.ndarray | None = np.asarray(config.domain_max_ned, dtype=float)
         else:
             self._dom_lo = self._dom_hi = None  # no domain: puffs are kept wherever they go
-        self._pos = np.zeros((0, 3))  # x, y NED, unfolded altitude (up) [m]
-        self._r2 = np.zeros(0)
-        self._mass = np.zeros(0)
-        self._t_rel = np.zeros(0)
-        self._serial = np.zeros(0, dtype=np.int64)
-        self._unit_meander = np.zeros((0, 3))
+        self._store = PuffStore()  # x, y NED, unfolded altitude (up) [m]; r^2; mass; release time; ...
+        self._phys = np.zeros((0, 3))  # the puffs' physical positions at a substep's start (grown as needed)
+        self._noise = np.zeros((0, 3))  # a substep's random-walk normals
         self.released_mass_g = 0.0
         self.removed_domain_mass_g = 0.0
         self.removed_cap_mass_g = 0.0
@@ -210,19 +222,18 @@ class PuffPlume:
     @property
     def puffs(self) -> np.ndarray:
         """(K,4) array: x, y, z (NED, physical) [m] and r^2 [m^2] of every live puff."""
-        return np.column_stack(
-            [self._pos[:, 0], self._pos[:, 1], -np.abs(self._pos[:, 2]), self._r2]
-        )
+        st = self._store
+        return np.column_stack([st.pos[:, 0], st.pos[:, 1], -np.abs(st.pos[:, 2]), st.r2])
 
     @property
     def puff_release_times(self) -> np.ndarray:
         """(K,) release time [s] of every live puff (same order as ``puffs``)."""
-        return self._t_rel.copy()
+        return self._store.t_rel.copy()
 
     @property
     def mass_in_puffs_g(self) -> float:
         """Mass currently carried by live puffs [g]."""
-        return float(self._mass.sum())
+        return float(self._store.mass.sum())
 
     @property
     def removed_mass_g(self) -> float:
@@ -265,47 +276,42 @@ class PuffPlume:
             new_m.append(np.full(n, self._puff_mass_g[i]))
         if not new_pos:
             return
-        m = np.concatenate(new_m)
-        pos = np.concatenate(new_pos)
+        m = np.concatenate(new_m) if len(new_m) > 1 else new_m[0]
         self.released_mass_g += float(m.sum())
-        self._serial = np.concatenate(
-            [self._serial, np.arange(self._next_serial, self._next_serial + len(m))]
-        )
-        self._next_serial += len(m)
         # New puffs get their meander sample in this substep's refresh (see _substep).
-        self._unit_meander = np.concatenate([self._unit_meander, np.full((len(m), 3), np.nan)])
-        self._pos = np.concatenate([self._pos, pos])
-        self._t_rel = np.concatenate([self._t_rel, *new_t])
-        self._mass = np.concatenate([self._mass, m])
-        self._r2 = np.concatenate([self._r2, np.full(len(m), cfg.source_radius_m**2)])
+        self._store.append(np.concatenate(new_pos) if len(new_pos) > 1 else new_pos[0],
+                           np.concatenate(new_t) if len(new_t) > 1 else new_t[0], m, cfg.source_radius_m**2,
+                           self._next_serial)  # fmt: skip
+        self._next_serial += len(m)
 
     def _substep(self, t: float, h: float) -> None:
         self._release(t, h)
         w_ref, u = self._ref_speed(t)
         cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
         cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
-        k = len(self._r2)
+        st = self._store
+        k = len(st)
         if k:
             # The meander is smooth and nearly frozen in the frame the puffs ride in, so
-            # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S.
-            # (New puffs have a NaN cache and are sampled in the same pass.)
-            refresh = self._serial % self._n_groups == self._substep_count % self._n_groups
-            phys = self._pos.copy()
-            phys[:, 2] = -np.abs(phys[:, 2])
+            # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S, a
+            # 1/n_groups share of them per substep, by serial number. (New puffs have a NaN cache
+            # and are sampled in the same pass.)
+            if self._phys.shape[0] < k:
+                self._phys, self._noise = np.zeros((2 * k, 3)), np.zeros((2 * k, 3))
+            phys = self._phys[:k]  # physical positions at the start of the step
+            _physical(st.pos, phys)
             vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
             growth = PUFF_GROWTH_SHARE * min(cal_y.small_scale_rate, cal_z.small_scale_rate)
             walk_y = math.sqrt(max(cal_y.small_scale_rate - growth, 0.0) * h)
             walk_z = math.sqrt(max(cal_z.small_scale_rate - growth, 0.0) * h)
-            scale = np.array([cal_y.meander_sigma, cal_y.meander_sigma, cal_z.meander_sigma])
-            noise = self._rng.standard_normal((k, 3))
+            noise = self._rng.standard_normal((k, 3), out=self._noise[:k])
             mf = self._meander
-            before = phys  # physical positions at the start of the step
             _advance_puffs(
-                self._pos, self._r2, self._unit_meander, refresh, vel, noise, scale,
-                np.array([walk_y, walk_y, walk_z]), growth, h, mf.offset, mf.k, mf.phase, mf.amp,
+                st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups, vel, noise,
+                cal_y.meander_sigma, cal_z.meander_sigma, walk_y, walk_z, growth, h, mf.offset, mf.k, mf.phase, mf.amp,
             )  # fmt: skip
             if self._obstacles.heights.shape[0]:
-                self._reflect(before)
+                self._reflect(phys)
             self._remove()
         self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
         self._substep_count += 1
@@ -313,28 +319,21 @@ class PuffPlume:
     def _reflect(self, before: np.ndarray) -> None:
         """Puffs whose step ended inside a building mirrored out of it (off the wall or roof they
         crossed); they continue from there with their altitude unfolded afresh."""
-        self.reflected += _reflect_puffs(self._pos, before, *self._obstacles)
-
-    def _keep(self, mask: np.ndarray | slice) -> None:
-        self._pos = self._pos[mask]
-        self._r2 = self._r2[mask]
-        self._mass = self._mass[mask]
-        self._t_rel = self._t_rel[mask]
-        self._serial = self._serial[mask]
-        self._unit_meander = self._unit_meander[mask]
+        self.reflected += _reflect_puffs(self._store.pos, before, *self._obstacles)
 
     def _remove(self) -> None:
+        st = self._store
         if self._dom_lo is not None:
-            phys = np.column_stack([self._pos[:, :2], -np.abs(self._pos[:, 2])])
+            phys = np.column_stack([st.pos[:, :2], -np.abs(st.pos[:, 2])])
             inside = np.all((phys >= self._dom_lo) & (phys <= self._dom_hi), axis=1)
             if not inside.all():
-                self.removed_domain_mass_g += float(self._mass[~inside].sum())
-                self._keep(inside)
-        excess = len(self._r2) - self.config.max_puffs
+                self.removed_domain_mass_g += float(st.mass[~inside].sum())
+                st.keep(inside)
+        excess = len(st) - self.config.max_puffs
         if excess > 0:
             # Puffs are stored in release order, so the first ones are the oldest.
-            self.removed_cap_mass_g += float(self._mass[:excess].sum())
-            self._keep(slice(excess, None))
+            self.removed_cap_mass_g += float(st.mass[:excess].sum())
+            st.drop_oldest(excess)
 
     # ------------------------------------------------------------------ output
     def concentration(self, points: np.ndarray) -> np.ndarray | float:
@@ -342,7 +341,8 @@ class PuffPlume:
         pts = np.asarray(points, dtype=float)
         single = pts.ndim == 1
         pts = np.atleast_2d(pts)
-        out = _puff_concentration(np.ascontiguousarray(pts), self._pos, self._r2, self._mass)
+        st = self._store
+        out = _puff_concentration(np.ascontiguousarray(pts), st.pos, st.r2, st.mass)
         return float(out[0]) if single else out
 
     def slice_grid(
