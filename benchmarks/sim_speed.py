@@ -6,10 +6,12 @@ Scenario 1 wind; goal: at least 100x real time. In the same run, RotorPy's Multi
 SE3Control on a hover trajectory in a constant wind at 100 Hz and 500 Hz (the peer), and the
 ratio. JIT compilation is excluded (a warm-up run first). Usage:
 
-    python benchmarks/sim_speed.py [--seconds 120] [--no-peer] [--scenario paper-s1]
+    python benchmarks/sim_speed.py [--seconds 120] [--no-peer] [--scenario paper-s1] [--no-plume]
 
 ``--scenario paper-s4 --reference open-field`` measures the urban world (gridded wind, puffs among
 the buildings) and, in the same run, the same vehicle and plume in open terrain.
+``--no-plume`` flies the scenario without its ``[plume]`` table (the world without the plume and the
+chemical sensor: ``--scenario open-field --no-plume`` is issue 30's "without the plume" case).
 ``--vehicle nasa-quad --reference-vehicle nasa-quad-table5`` measures the blade-element world (the default
 truth) against the identified-model world of before, same scenario, same run (issue 29: at most 1.5x).
 """
@@ -33,10 +35,12 @@ from sitl.simulation import Simulation  # noqa: E402
 
 
 def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", repeats: int = 3,
-                             vehicle: str | None = None) -> dict:  # fmt: skip
+                             vehicle: str | None = None, plume: bool = True) -> dict:  # fmt: skip
     sc = load_scenario(scenario).with_duration(sim_seconds + 1.0)
     if vehicle is not None:
         sc = replace(sc, vehicle=vehicle)
+    if not plume:
+        sc = replace(sc, plume=None)
     Simulation(sc, seed=0).run(1.0)  # warm-up: JIT compile / load the numba cache
     best = best_cpu = 0.0
     for r in range(repeats):
@@ -49,7 +53,8 @@ def windseek_realtime_factor(sim_seconds: float, scenario: str = "paper-s1", rep
         assert not sim.crashed
     # The CPU-time figure is the one to compare between runs on a shared machine: other processes
     # lengthen the wall clock, not the process's own CPU time.
-    return {"scenario": scenario, "vehicle": sc.vehicle, "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
+    return {"scenario": scenario + ("" if plume else " (no plume)"), "vehicle": sc.vehicle,
+            "physics_hz": sc.physics_rate_hz, "sim_seconds": sim_seconds,
             "realtime_factor": best, "realtime_factor_cpu": best_cpu}
 
 
@@ -61,14 +66,15 @@ def main() -> None:
     ap.add_argument("--scenario", default="paper-s1", help="scenario to fly (default paper-s1)")
     ap.add_argument("--reference", default=None,
                     help="a second scenario measured in the same run, and the ratio (e.g. open-field for paper-s4)")
+    ap.add_argument("--no-plume", action="store_true", help="fly the scenario without its [plume] table")
     ap.add_argument("--vehicle", default=None, help="the world's vehicle file (default: the scenario's)")
     ap.add_argument("--reference-vehicle", default=None,
                     help="a second vehicle file flown in the same scenario, same run, and the cost ratio")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
-    ws = windseek_realtime_factor(args.seconds, args.scenario, vehicle=args.vehicle)
-    print(f"windseek  {args.scenario} ({ws['vehicle']}), 500 Hz physics, turbulence + sensors: "
+    ws = windseek_realtime_factor(args.seconds, args.scenario, vehicle=args.vehicle, plume=not args.no_plume)
+    print(f"windseek  {ws['scenario']} ({ws['vehicle']}), 500 Hz physics, turbulence + sensors: "
           f"{ws['realtime_factor']:8.1f} x real time (goal >= 100); per CPU second: {ws['realtime_factor_cpu']:.1f}")
     if args.reference_vehicle:
         rv = windseek_realtime_factor(args.seconds, args.scenario, vehicle=args.reference_vehicle)
