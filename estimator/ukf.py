@@ -75,6 +75,7 @@ from collections import Counter, deque
 
 import numpy as np
 
+from estimator import imu_batch
 from estimator.config import PRESETS, EstimatorConfig
 from estimator.direction import DirectionFilter
 from estimator.gating import InputGate
@@ -255,6 +256,15 @@ class WindEstimator(EstimatorOutputs):
         self.accepted["imu"] += 1
         self._record_history()
         return True
+
+    def imu_batch(self, ts: np.ndarray, qs: np.ndarray, accel: np.ndarray, gyro: np.ndarray, rotor_t: np.ndarray,
+                  rotor_w: np.ndarray, ri: int) -> int:  # fmt: skip
+        """IMU steps at times ``ts`` (m,) s in one compiled call: for each, the rotor speed samples ``rotor_w``
+        (E, N; rad/s) at times ``rotor_t`` (E,) from index ``ri`` up to its time (:meth:`set_rotor_speeds`),
+        the attitude ``qs`` (m, 4; :meth:`set_attitude`), then the IMU sample ``accel``, ``gyro`` (m, 3; FRD,
+        m/s^2 and rad/s; :meth:`imu`). The same checks, counts and state as those calls, bit for bit
+        (:mod:`estimator.imu_batch`). Returns the index of the first rotor speed sample not taken."""
+        return imu_batch.feed(self, ts, qs, accel, gyro, rotor_t, rotor_w, ri)
 
     def gnss_velocity(self, t_valid: float, vel_ned: np.ndarray) -> bool:
         """NED ground velocity (m/s) valid at ``t_valid`` (s; may lie up to gnss_history_s in the past).

@@ -169,7 +169,8 @@ class EstimatedWind:
     def _feed(self, est: WindEstimator, imu: list, esc: list, truth: np.ndarray) -> None:
         """Feed one tick's samples in time order: each IMU step (the mean of ``decimation`` samples, at
         the last one's time) after the ESC samples up to its time, with the AHRS attitude of that sample,
-        then the GNSS fixes that have arrived by then. The AHRS error advances at every IMU sample."""
+        then the GNSS fixes that have arrived by then. The AHRS error advances at every IMU sample. The
+        steps between two GNSS fixes go to the filter in one call (:meth:`WindEstimator.imu_batch`)."""
         k = len(imu)
         t = [s[0] for s in imu]
         q = np.empty((k, 4))
@@ -179,20 +180,29 @@ class EstimatedWind:
         means = np.empty((k, 2, 3))
         m, self._n_sum = group_means(np.array([s[1] for s in imu]), np.array([s[2] for s in imu]), self._sums,
                                      self._n_sum, self.decimation, idx, means)  # fmt: skip
-        ei = 0
+        sel = idx[:m]
+        ts, qs = np.array(t)[sel], q[sel]
+        acc, gyr = np.ascontiguousarray(means[:m, 0]), np.ascontiguousarray(means[:m, 1])
+        esc_t = np.array([e[0] for e in esc], dtype=float)
+        esc_w = np.array([e[1] for e in esc], dtype=float) if esc else np.zeros((0, est.n_rotors))
+        ei = j0 = 0
         pending, latency = self._pending_gnss, self._latency
-        for j in range(m):
-            i = int(idx[j])
-            ti = t[i]
-            while ei < len(esc) and esc[ei][0] <= ti + 1e-9:
-                est.set_rotor_speeds(esc[ei][0], esc[ei][1])
-                ei += 1
-            est.set_attitude(ti, q[i])
-            est.imu(ti, means[j, 0], means[j, 1])
-            # A fix is delivered `latency` after its time of validity, as a receiver does.
+        while j0 < m:
+            # The steps up to the first at which a GNSS fix is due (one compiled call), then the fixes due: a fix
+            # is delivered `latency` after its time of validity, as a receiver does.
+            j1 = j0
+            if pending:
+                due = pending[0].t + latency
+                while j1 < m - 1 and not due <= ts[j1] + 1e-9:
+                    j1 += 1
+            else:
+                j1 = m - 1
+            ei = est.imu_batch(ts[j0:j1 + 1], qs[j0:j1 + 1], acc[j0:j1 + 1], gyr[j0:j1 + 1], esc_t, esc_w, ei)
+            ti = ts[j1]
             while pending and pending[0].t + latency <= ti + 1e-9:
                 g = pending.pop(0)
                 est.gnss_velocity(g.t, g.vel_ned)
+            j0 = j1 + 1
         # ESC samples up to the tick's last IMU sample are in force at the next step; later ones are dropped.
         while ei < len(esc) and esc[ei][0] <= t[-1] + 1e-9:
             est.set_rotor_speeds(esc[ei][0], esc[ei][1])
