@@ -110,7 +110,7 @@ PARTS = [
     ("sensors: IMU, ESC, GNSS, baro, mag", [("sitl.world.world", "World", "_imu_batch"),
                                             ("sitl.world.world", "World", "_slow_tick")]),
     ("estimator (UKF predict + updates)", [("estimator.ukf", "WindEstimator", m) for m in
-                                           ("imu", "gnss_velocity", "set_rotor_speeds", "set_attitude")]),
+                                           ("imu", "imu_batch", "gnss_velocity", "set_rotor_speeds", "set_attitude")]),
     ("AHRS model, estimator feed, direction filter", [("mission.wind_source", "EstimatedWind", "update")]),
     ("strategy (surge-cast)", [("mission.strategies.surge_cast", "SurgeCast", "update")]),
 ]

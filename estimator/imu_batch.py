@@ -12,7 +12,8 @@ input checks, clocks and bookkeeping per step); here it runs once per call.
 
 The filter's Python state goes in and out through a float array (``S_*``; NaN for None), its
 settings through another (``C_*``), the counts through an integer array (``K_*``). The GNSS
-velocity history (``_hist``) is written back as the same ``R @ x[0:3]`` products numpy forms.
+velocity history (``_hist``) gets each step's time, attitude matrix and body velocity; the filter
+forms the NED velocity ``R @ x[0:3]`` from them (numpy, as before) when it reads an entry.
 Units: s, m/s^2, rad/s, rad/s; FRD body, NED world.
 """
 
@@ -175,12 +176,17 @@ def imu_steps(
     esc_ok: bool, s: np.ndarray, c: np.ndarray, cnt: np.ndarray, q_att: np.ndarray, R: np.ndarray, w_rot: np.ndarray,
     rates: np.ndarray, hist_t: np.ndarray, hist_R: np.ndarray, hist_x: np.ndarray, x: np.ndarray, P: np.ndarray,
     R_accel: np.ndarray, p: np.ndarray, q_density: np.ndarray, i_scale: int, bias_idx: np.ndarray, Wm: np.ndarray,
-    Wc: np.ndarray, cc: float, det: np.ndarray, det_cfg: np.ndarray, w: tuple, m3: tuple, nis: tuple,
+    Wc: np.ndarray, cc: float, det: np.ndarray, det_cfg: np.ndarray, sig: np.ndarray, sig_f: np.ndarray,
+    L: np.ndarray, x_new: np.ndarray, P_new: np.ndarray, S: np.ndarray, Pxz: np.ndarray, y: np.ndarray, K: np.ndarray,
+    Lz: np.ndarray, nis_y: np.ndarray, nis_S: np.ndarray,
 ) -> tuple[int, int]:  # fmt: skip
     """The steps at times ``ts`` (m,) s: the rotor speed samples ``esc_w`` (E, N) rad/s at ``esc_t`` (E,)
     from index ``ei`` up to each step's time (``esc_ok``: their shape fits the model), the attitude
     ``qs`` (m, 4), the IMU means ``acc``, ``gyr`` (m, 3). Each accepted step's time, attitude matrix and
-    body velocity go to ``hist_*``. Returns (the next rotor sample's index, history rows written)."""
+    body velocity go to ``hist_*``. ``sig`` ... ``nis_S``: accel_step's scratch and last innovation, passed
+    as arrays (a tuple argument costs more to pass in than the arrays). Returns (the next rotor sample's
+    index, history rows written)."""
+    w, m3, nis = (sig, sig_f, L, x_new, P_new), (S, Pxz, y, K, Lz), (nis_y, nis_S)
     n_hist = 0
     for j in range(ts.shape[0]):
         t = ts[j]
@@ -230,14 +236,11 @@ def feed(est: Any, ts: np.ndarray, qs: np.ndarray, acc: np.ndarray, gyr: np.ndar
     stepped, written back. Returns the index of the first rotor speed sample not taken."""
     cfg, gate, rate = est.config, est._gate, est.imu_rate
     last = gate._last_in
+    c = _settings(est)
     s = np.array([_nan(est.t), _nan(est._t_first), est._fz_ref, est._fz_seen, est._ema_alpha, est._dt_last,
                   est.scale_released, est._nis_seen, _nan(last.get("attitude")), _nan(last.get("rotors")),
                   _nan(last.get("imu")), _nan(rate.interval_s), rate._n, _nan(rate._t_last), est._R is not None,
                   est._w_rot is not None], dtype=float)  # fmt: skip
-    c = np.array([cfg.transient_tau_s, cfg.fz_ref_tau_s, cfg.transient_baseline_tau_s, cfg.max_gap_s, cfg.max_step_s,
-                  cfg.vertical_wind_tau_s or 0.0, cfg.scale_hold_s, cfg.scale_release_wind_sigma_m_s**2,
-                  cfg.scale_sigma0**2, cfg.scale_walk_per_sqrt_s**2, rate.stated_rate_hz, float(est._p[P_WMAX])],
-                 dtype=float)  # fmt: skip
     cnt = np.zeros((2, len(COUNTS)), dtype=np.int64)
     cnt[1] = -1
     n = est.n_rotors
@@ -249,7 +252,8 @@ def feed(est: Any, ts: np.ndarray, qs: np.ndarray, acc: np.ndarray, gyr: np.ndar
     hist_t, hist_R, hist_x = np.empty(m), np.empty((m, 3, 3)), np.empty((m, 3))
     ei, n_hist = imu_steps(ts, qs, acc, gyr, esc_t, esc_w, ei, esc_w.shape[1] == n, s, c, cnt, q_att, R, w_rot, rates,
                            hist_t, hist_R, hist_x, est.x, est.P, est._R_accel, est._p, est._q_density, est._i_scale,
-                           est._bias_idx, est._Wm, est._Wc, est._c, est._det, est._det_cfg, est._w, est._m3, est._nis)
+                           est._bias_idx, est._Wm, est._Wc, est._c, est._det, est._det_cfg, *est._w, *est._m3,
+                           *est._nis)  # fmt: skip
     est.t, est._t_first, est._fz_seen = _none(s[S_T]), _none(s[S_T_FIRST]), bool(s[S_FZ_SEEN])
     # (a numpy scalar once the low-pass has run, as the Python update left it: it adds numpy's a[2])
     est._fz_ref = np.float64(s[S_FZ_REF]) if est._fz_seen else float(s[S_FZ_REF])
@@ -269,10 +273,22 @@ def feed(est: Any, ts: np.ndarray, qs: np.ndarray, acc: np.ndarray, gyr: np.ndar
             owner, key = COUNTS[k]
             getattr(est, owner)[key] += int(cnt[0, k])
     hist = est._hist
-    for k in range(n_hist):
-        hist.append((float(hist_t[k]), hist_R[k] @ hist_x[k]))
     if n_hist:
+        hist.extend(zip(hist_t[:n_hist].tolist(), hist_R[:n_hist], hist_x[:n_hist], strict=True))
         horizon = est.t - cfg.gnss_history_s
         while hist and hist[0][0] < horizon:
             hist.popleft()
     return ei
+
+
+def _settings(est: Any) -> np.ndarray:
+    """The filter's settings as :func:`imu_steps` reads them (``C_*``), made once per filter (its config is frozen)."""
+    c = getattr(est, "_batch_settings", None)
+    if c is None:
+        cfg = est.config
+        c = np.array([cfg.transient_tau_s, cfg.fz_ref_tau_s, cfg.transient_baseline_tau_s, cfg.max_gap_s,
+                      cfg.max_step_s, cfg.vertical_wind_tau_s or 0.0, cfg.scale_hold_s,
+                      cfg.scale_release_wind_sigma_m_s**2, cfg.scale_sigma0**2, cfg.scale_walk_per_sqrt_s**2,
+                      est.imu_rate.stated_rate_hz, float(est._p[P_WMAX])], dtype=float)  # fmt: skip
+        est._batch_settings = c
+    return c

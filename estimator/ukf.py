@@ -163,7 +163,7 @@ class WindEstimator(EstimatorOutputs):
         self._q_att: np.ndarray | None = None
         self._rates = np.zeros(3)
         self._w_rot: np.ndarray | None = None
-        self._hist: deque[tuple[float, np.ndarray]] = deque()
+        self._hist: deque[tuple[float, np.ndarray, np.ndarray]] = deque()  # (t s, R body->NED, body velocity m/s)
         self._gate = InputGate()
         self.rejected: Counter[str] = self._gate.rejected
         self.accepted: Counter[str] = Counter()
@@ -402,10 +402,11 @@ class WindEstimator(EstimatorOutputs):
         return np.asarray(self.x[0:3] - self._R.T @ self.x[3:6])
 
     def _record_history(self) -> None:
+        # The NED velocity R @ x[0:3] is formed when an entry is read (_history_at: a few per GNSS fix),
+        # not at every step; the attitude matrix is never changed in place (set_attitude makes a new one).
         if self._R is None or self.t is None:
             return
-        v_ned = self._R @ self.x[0:3]
-        self._hist.append((self.t, v_ned))
+        self._hist.append((self.t, self._R, self.x[0:3].copy()))
         horizon = self.t - self.config.gnss_history_s
         while self._hist and self._hist[0][0] < horizon:
             self._hist.popleft()
@@ -418,11 +419,12 @@ class WindEstimator(EstimatorOutputs):
         prev = h[0]
         for item in h:
             if item[0] >= t:
-                t0, v0 = prev
-                t1, v1 = item
+                t0, R0, b0 = prev
+                t1, R1, b1 = item
                 if t1 <= t0:
-                    return v1
+                    return R1 @ b1
+                v0, v1 = R0 @ b0, R1 @ b1
                 a = (t - t0) / (t1 - t0)
                 return v0 + a * (v1 - v0)
             prev = item
-        return h[-1][1]
+        return h[-1][1] @ h[-1][2]
