@@ -34,7 +34,7 @@ from estimator import mavlink_decode as dec
 from estimator.compass import CompassConfig, CompassHeading
 from estimator.config import EstimatorConfig
 from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withheld
-from estimator.live_select import InputSelection
+from estimator.live_select import InputSelection, filter_waiting_line
 from estimator.model_fit import ModelFit
 from estimator.motor_output import OutputMap
 from estimator.rpm_free import MotorCommandModel
@@ -159,7 +159,7 @@ class LiveCore:
         """The current filter's estimate, or None when it has not estimated anything yet or the wind is
         withheld (the vehicle is not the model's: see the module docstring)."""
         e = self.est
-        if not self.fit.judged or e.t is None or e.accepted["imu"] == 0:
+        if not self.fit.publishable or e.t is None or e.accepted["imu"] == 0:
             return None
         return LiveOutput(float(e.t), e.wind_ned, e.wind_cov)
 
@@ -178,18 +178,11 @@ class LiveCore:
         return "estimating"
 
     def _waiting_detail(self) -> str:
-        """Every input has a message, yet the filter has not run: say which sample it still lacks."""
-        why = []
-        for name in self.est.missing_inputs():
-            if name == "rotor speeds" and self._esc_failed.any():
-                rotors = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_failed))
-                why.append(f"no rotor speeds (ESC_INFO reports the ESC of rotor {rotors} failed)")
-            elif name == "rotor speeds" and self.select.chosen["rotors"] in dec.MEASURED_TYPES:
-                seen = ", ".join(str(i + 1) for i in np.flatnonzero(self._esc_seen)) or "none"
-                why.append(f"no complete set of rotor speeds (rotors reported: {seen})")
-            else:
-                why.append(f"no {name} accepted yet")
-        return "waiting for inputs: " + ("; ".join(why) if why else "no IMU sample accepted yet")
+        """Every input has a message, yet nothing is published: the sample the filter lacks, or why it is held."""
+        if self.fit.domain.excursion is not None:
+            return f"wind withheld while {self.fit.domain.excursion}"
+        return filter_waiting_line(self.est.missing_inputs(), self.select.chosen.get("rotors"), self._esc_seen,
+                                   self._esc_failed)  # fmt: skip
 
     # ------------------------------------------------------------------ input
     def handle(self, msg: Any) -> None:
@@ -401,6 +394,8 @@ class LiveCore:
             line = self.fit.mismatch
             self.model_note = line if self.model_note is None else f"{self.model_note}; {line}"
             self.note(str(line))
+        elif (said := self.fit.domain.pop_note()) is not None:  # an excursion out of the identified domain
+            self.note(said)
 
     def _esc_speeds(self, index: int, speeds: list[float], t: float) -> None:
         for i, w in enumerate(speeds):

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 from collections import Counter
 
-from estimator.mavlink_decode import COMMAND_TYPES, PREFERENCE
+import numpy as np
+
+from estimator.mavlink_decode import COMMAND_TYPES, MEASURED_TYPES, PREFERENCE
 
 GROUP_LABEL = {"imu": "IMU", "attitude": "attitude", "velocity": "velocity", "rotors": "rotor speeds"}
 
@@ -110,3 +112,21 @@ class InputSelection:
 
     def _missing_reason(self, group: str) -> str:
         return f"no {_or_list(PREFERENCE[group])} seen"
+
+
+def filter_waiting_line(missing: list[str], rotors_from: str | None, esc_seen: np.ndarray,
+                        esc_failed: np.ndarray) -> str:  # fmt: skip
+    """Every input has a message, yet the filter has not run: which sample it still lacks (``missing``: the
+    filter's own list; ``rotors_from``: the rotor speeds' message type; ESCs reported / reported failed,
+    by rotor)."""
+    why = []
+    for name in missing:
+        if name == "rotor speeds" and esc_failed.any():
+            rotors = ", ".join(str(i + 1) for i in np.flatnonzero(esc_failed))
+            why.append(f"no rotor speeds (ESC_INFO reports the ESC of rotor {rotors} failed)")
+        elif name == "rotor speeds" and rotors_from in MEASURED_TYPES:
+            seen = ", ".join(str(i + 1) for i in np.flatnonzero(esc_seen)) or "none"
+            why.append(f"no complete set of rotor speeds (rotors reported: {seen})")
+        else:
+            why.append(f"no {name} accepted yet")
+    return "waiting for inputs: " + ("; ".join(why) if why else "no IMU sample accepted yet")

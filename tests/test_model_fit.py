@@ -47,6 +47,46 @@ def test_domain_check_against_the_identified_box() -> None:
     assert not chk.sample(t, None, False)
 
 
+def test_a_horizontal_excursion_withholds_the_wind_while_it_lasts() -> None:
+    """Paper-s2 through ArduCopter (seeds 1004, 1005): flying 3 m/s upwind in 10 m/s of turbulent wind put two
+    2-s windows at u +13.7 m/s against the box's +13.5, and the wind was withheld for the rest of the flight.
+    A horizontal airspeed beyond the box is withheld while it lasts, said once per excursion, never latched."""
+    v = load_vehicle("nasa-quad")
+    box = identified_box(v)
+    assert box is not None
+    chk = DomainCheck(v, window_s=1.0, confirm=2)
+    fast, inside = np.array([box[0, 1] + 0.2, 0.5, 0.3]), np.array([8.0, 1.0, 0.5])
+    t = 0.0
+
+    def fly(a: np.ndarray, windows: int) -> list[bool]:
+        nonlocal t
+        said = []
+        for _ in range(101 * windows):
+            said.append(chk.sample(t, a, True))
+            t += 0.01
+        return said
+
+    assert not any(fly(fast, 5))  # five windows beyond the box: no mismatch
+    assert chk.mismatch is None and chk.excursion is not None and "u +" in chk.excursion
+    note = chk.pop_note()
+    assert note is not None and "withheld until it is back inside" in note and chk.pop_note() is None
+    fly(inside, 2)  # (windows of 1 s do not start with the segments: two make one wholly inside)
+    assert chk.excursion is None and chk.pop_note() is None
+    fly(fast, 3)
+    assert chk.excursion is not None and chk.pop_note() is not None  # a new excursion is said again
+    assert chk.excursion_windows >= 6 and chk.mismatch is None
+    fly(np.array([3.0, 0.0, box[2, 1] + 1.0]), 3)  # a vertical one is a mismatch, latched
+    assert chk.mismatch is not None and "w +" in chk.mismatch
+
+
+def test_model_fit_publishes_only_inside_the_domain() -> None:
+    fit = ModelFit(load_vehicle("nasa-quad"))
+    fit.thrust.windows = fit.domain.windows = fit.thrust.config.confirm  # as if both had judged their windows
+    assert fit.judged and fit.publishable
+    fit.domain.excursion = "outside the identified domain (u +13.7 m/s (identified -15.1..+13.5))"
+    assert fit.judged and not fit.publishable  # still the model's vehicle; the estimate held meanwhile
+
+
 def test_model_fit_is_judged_only_after_both_checks_had_their_windows() -> None:
     fit = ModelFit(load_vehicle("nasa-quad"))
     assert not fit.judged and fit.mismatch is None
