@@ -19,8 +19,23 @@ from mission.strategies import Observation, WindInfo
 from mission.strategies.infotaxis import Infotaxis
 from mission.strategies.params import InfotaxisParams
 from mission.strategies.ste_city import FIELD_SOLVE_LIMIT_S
-from mission.strategies.ste_model import EPS, binary_entropy, mean_plume_prob, model_constants
-from mission.strategies.ste_urban import UrbanModel, is_solid, near_path, path_frame, plume_in_path_frame
+from mission.strategies.ste_model import (
+    EPS,
+    binary_entropy,
+    mean_plume_prob,
+    meander_nodes,
+    model_constants,
+    weigh_particle,
+)
+from mission.strategies.ste_urban import (
+    SOLID_LOG_PENALTY,
+    UrbanModel,
+    accumulate_urban,
+    is_solid,
+    near_path,
+    path_frame,
+    plume_in_path_frame,
+)
 from mission.strategies.ste_urban_field import build_plane
 from mission.strategies.ste_urban_plan import expected_information_urban
 
@@ -56,18 +71,59 @@ def _per_pair(paths: np.ndarray, lens: np.ndarray, pz: float, n: np.ndarray, e: 
         out_info[k] = binary_entropy(pbar / m) - hbar / m
 
 
-def test_move_choice_kernel_is_bit_identical_to_the_per_pair_formulation() -> None:
+@njit(cache=False)
+def _per_particle(acc: np.ndarray, alpha: np.ndarray, n: np.ndarray, e: np.ndarray, h: np.ndarray, q: np.ndarray,
+                  cd: np.ndarray, sd: np.ndarray, path: np.ndarray, k_len: int, pz: float, hit: bool, kappa: float,
+                  rho: float, nodes: np.ndarray, mc: np.ndarray, gp: np.ndarray, solid: np.ndarray,
+                  mix_rate: float) -> None:
+    """The update's accumulation particle by particle (the formulation before the batched coarse stage)."""
+    for i in range(acc.shape[0]):
+        if is_solid(gp, solid, n[i], e[i]):
+            for j in range(acc.shape[1]):
+                acc[i, j] += kappa * SOLID_LOG_PENALTY
+            continue
+        x0, y0, tau, mix = path_frame(path, k_len, n[i], e[i], gp[5], gp[6])
+        y, g, cpk, sm, si2 = plume_in_path_frame(x0, y0, tau, mix, cd[i], sd[i], pz, h[i], q[i], gp, mix_rate, mc)
+        weigh_particle(acc, alpha, i, y, g, cpk, sm, si2, hit, kappa, rho, nodes, mc)
+
+
+#: Particles (n, e, h, q, cos delta, sin delta).
+Parts = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _scene() -> tuple[UrbanModel, np.ndarray, np.ndarray, Parts]:
+    """Two blocks, 60 candidate paths (three of them short) and 250 particles, some inside a block."""
     plane = build_plane([_box(40.0, 0.0, 16.0, 12.0), _box(70.0, 25.0, 12.0, 10.0)], np.array([-4.0, -1.0]), 5.0)
     model = UrbanModel(plane, 3.0, 120.0)
     rng = np.random.default_rng(3)
-    cx, cy = rng.uniform(-20.0, 100.0, 60), rng.uniform(-40.0, 60.0, 60)
-    paths, lens = model.paths(cx, cy)
+    paths, lens = model.paths(rng.uniform(-20.0, 100.0, 60), rng.uniform(-40.0, 60.0, 60))
     lens[:3] = (1, 2, 10)  # a one-point path, and two stopped short (as by a closed corner)
     m = 250
     delta = rng.normal(0.0, 0.2, m)
-    parts = (rng.uniform(0.0, 120.0, m), rng.uniform(-40.0, 60.0, m), rng.uniform(0.0, 5.0, m),
-             10.0 ** rng.uniform(-3.0, 0.0, m), np.cos(delta), np.sin(delta))
-    gp, _, _, solid = plane.args()
+    parts: Parts = (rng.uniform(0.0, 120.0, m), rng.uniform(-40.0, 60.0, m), rng.uniform(0.0, 5.0, m),
+                    10.0 ** rng.uniform(-3.0, 0.0, m), np.cos(delta), np.sin(delta))
+    return model, paths, lens, parts
+
+
+def test_update_kernel_is_bit_identical_to_the_per_particle_formulation() -> None:
+    model, paths, lens, parts = _scene()
+    gp, _, _, solid = model.plane.args()
+    nodes, _ = meander_nodes(7)
+    kernel: Any = accumulate_urban  # numba dispatchers: mypy cannot check star arguments against them
+    reference: Any = _per_particle
+    for k in range(6):  # hits and misses along paths of every kind, the window's state carried on
+        acc, alpha = np.zeros((250, 7)), np.full((250, 7), -1.0)
+        ref, ref_alpha = acc.copy(), alpha.copy()
+        for _ in range(2):
+            args = (paths[k], lens[k], 2.0, k % 2 == 0, 0.8, 0.5, nodes, MC, gp, solid, model.mix_rate)
+            kernel(acc, alpha, *parts, *args)
+            reference(ref, ref_alpha, *parts, *args)
+        assert np.array_equal(acc, ref) and np.array_equal(alpha, ref_alpha)
+
+
+def test_move_choice_kernel_is_bit_identical_to_the_per_pair_formulation() -> None:
+    model, paths, lens, parts = _scene()
+    gp, _, _, solid = model.plane.args()
     info, phit, ref = np.empty(60), np.empty(60), np.empty(60)
     expected_information_urban(paths, lens, 5.0, *parts, MC, gp, solid, model.mix_rate, info, phit)
     _per_pair(paths, lens, 5.0, *parts, MC, gp, solid, model.mix_rate, ref)

@@ -212,6 +212,26 @@ def path_frame(path: np.ndarray, k_len: int, sn: float, se: float, upn: float, u
     return frame_about(path, k_len, sn, se, kc, best)
 
 
+@njit(cache=True)
+def coarse_closest(path: np.ndarray, k_len: int, n: np.ndarray, e: np.ndarray, best: np.ndarray,
+                   kc: np.ndarray) -> None:
+    """For every particle (n[i], e[i]) [m]: the closest of the path points 0, COARSE, 2 COARSE, ...
+    below ``k_len`` (the first of equals) into ``kc[i]``, its squared distance [m^2] into ``best[i]``
+    (:func:`path_frame`'s coarse stage for many sources; points outer, particles inner: the compiler
+    vectorizes it)."""
+    best[:] = np.inf
+    kc[:] = 0
+    for k in range(0, k_len, COARSE):
+        pn, pe = path[k, P_N], path[k, P_E]
+        for i in range(n.shape[0]):
+            dn = n[i] - pn
+            de = e[i] - pe
+            d2 = dn * dn + de * de
+            if d2 < best[i]:
+                best[i] = d2
+                kc[i] = k
+
+
 @njit(cache=True, inline="always")
 def frame_about(path: np.ndarray, k_len: int, sn: float, se: float, kc: int, best: float
                 ) -> tuple[float, float, float, float]:
@@ -278,12 +298,19 @@ def accumulate_urban(acc: np.ndarray, alpha: np.ndarray, n: np.ndarray, e: np.nd
                      solid: np.ndarray, mix_rate: float) -> None:
     """One reading (hit or miss, sensor height pz [m]) whose backward path is ``path[:k_len]``, for
     every particle: ``ste_model.accumulate`` with the urban frame (module docstring)."""
+    best = np.empty(acc.shape[0])
+    kc = np.zeros(acc.shape[0], dtype=np.int64)
+    if k_len >= 2:
+        coarse_closest(path, k_len, n, e, best, kc)
     for i in range(acc.shape[0]):
         if is_solid(gp, solid, n[i], e[i]):
             for j in range(acc.shape[1]):
                 acc[i, j] += kappa * SOLID_LOG_PENALTY
             continue
-        x0, y0, tau, mix = path_frame(path, k_len, n[i], e[i], gp[5], gp[6])
+        if k_len >= 2:
+            x0, y0, tau, mix = frame_about(path, k_len, n[i], e[i], kc[i], best[i])
+        else:
+            x0, y0, tau, mix = path_frame(path, k_len, n[i], e[i], gp[5], gp[6])
         y, g, cpk, sm, si2 = plume_in_path_frame(x0, y0, tau, mix, cd[i], sd[i], pz, h[i], q[i], gp, mix_rate, mc)
         weigh_particle(acc, alpha, i, y, g, cpk, sm, si2, hit, kappa, rho, nodes, mc)
 

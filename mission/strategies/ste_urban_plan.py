@@ -12,7 +12,8 @@ for speed:
 
 - the coarse stage of ``path_frame`` (the closest of every ``COARSE``-th path point) runs for all
   particles of one path at once, a branch-free loop over particles the compiler vectorizes
-  (:func:`_coarse_closest`), and its result is handed to ``ste_urban.frame_about``;
+  (``ste_urban.coarse_closest``; the update does the same), and its result is handed to
+  ``ste_urban.frame_about``;
 - the path frame is found once per pair, for both the far test and the plume (it was found twice);
 - whether a particle lies inside a building is looked up once per particle, not once per pair.
 
@@ -26,35 +27,14 @@ from numba import njit
 
 from mission.strategies.ste_model import EPS, binary_entropy, mean_plume_prob
 from mission.strategies.ste_urban import (
-    COARSE,
-    P_E,
-    P_N,
     UrbanModel,
+    coarse_closest,
     frame_about,
     is_solid,
     near_path,
     path_frame,
     plume_in_path_frame,
 )
-
-
-@njit(cache=True)
-def _coarse_closest(path: np.ndarray, k_len: int, n: np.ndarray, e: np.ndarray, best: np.ndarray,
-                    kc: np.ndarray) -> None:
-    """For every particle (n[i], e[i]) [m]: the closest of the path points 0, COARSE, 2 COARSE, ...
-    below ``k_len`` (the first of equals) into ``kc[i]``, its squared distance [m^2] into ``best[i]``
-    (``ste_urban.path_frame``'s coarse stage; points outer, particles inner)."""
-    best[:] = np.inf
-    kc[:] = 0
-    for k in range(0, k_len, COARSE):
-        pn, pe = path[k, P_N], path[k, P_E]
-        for i in range(n.shape[0]):
-            dn = n[i] - pn
-            de = e[i] - pe
-            d2 = dn * dn + de * de
-            if d2 < best[i]:
-                best[i] = d2
-                kc[i] = k
 
 
 @njit(cache=True)
@@ -77,7 +57,7 @@ def expected_information_urban(paths: np.ndarray, lens: np.ndarray, pz: float, n
         path = paths[k]
         k_len = lens[k]
         if k_len >= 2:
-            _coarse_closest(path, k_len, n, e, best, kc)
+            coarse_closest(path, k_len, n, e, best, kc)
         pbar = 0.0
         hbar = 0.0
         for i in range(m):
