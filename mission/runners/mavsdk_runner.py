@@ -29,6 +29,7 @@ import asyncio
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -38,6 +39,7 @@ from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
 from mission.runners import ardupilot
 from mission.runners.fence import SiteBuildings, place_buildings
+from mission.runners.field_solver import field_solver_for
 from mission.runners.live_wind import ESTIMATOR_MESSAGES, EstimatedLiveWind, NoLiveWind, WindCovWind
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
 from mission.safety import SafetyLimits
@@ -119,6 +121,7 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     link = LinkConfig(cfg.connect, cfg.connect_timeout_s, cfg.health_timeout_s, cfg.limits.link_timeout_s,
                       cfg.speed_hint, signing_key=cfg.signing_key)  # fmt: skip
     estimated: EstimatedLiveWind | None = None
+    solver: ProcessPoolExecutor | None = None
     extra: tuple[str, ...] = ()
     sink = None
     upwind = UpwindFilter(params)
@@ -139,7 +142,9 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
                                                       max(10.0, 5.0 / cfg.speed_hint))  # fmt: skip
                 except CommandError as e:
                     raise MissionError(f"buildings: {e}") from None
-            loop = MissionLoop(v, make_strategy(cfg.strategy), params, wind, cfg.limits,
+            strategy = make_strategy(cfg.strategy)
+            solver = field_solver_for(strategy, params, obstacles)  # the urban field off the event loop
+            loop = MissionLoop(v, strategy, params, wind, cfg.limits,
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
                                seed=cfg.seed, obstacles=obstacles)  # fmt: skip
             loop.result.strategy = cfg.strategy
@@ -162,6 +167,8 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
     finally:
         if estimated is not None:
             estimated.stop()
+        if solver is not None:
+            solver.shutdown(wait=False, cancel_futures=True)
     res.wall_s = round(time.monotonic() - wall0, 2)
     return res
 

@@ -50,6 +50,7 @@ Frames and units: NED, SI; headings in rad (0 = north, clockwise); heights above
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor
 from dataclasses import replace
 
 import numpy as np
@@ -57,6 +58,7 @@ import numpy as np
 from mission.obstacles import Obstacles
 from mission.strategies.base import Observation, Setpoint, WindInfo, heading_of, heading_vec
 from mission.strategies.common import BaseStrategy
+from mission.strategies.infotaxis_display import PosteriorDisplay
 from mission.strategies.params import InfotaxisParams
 from mission.strategies.ste_adapt import DirectionSpread, adapted_likelihood, mismatch_factor
 from mission.strategies.ste_city import CitySupport
@@ -123,17 +125,22 @@ def warm_kernels(params: InfotaxisParams) -> None:
     s.posterior_map()
 
 
-class Infotaxis(BaseStrategy):
+class Infotaxis(BaseStrategy, PosteriorDisplay):
     """Source-term estimation (particle posterior) + infotaxis moves + credible-region declaration."""
 
     name = "infotaxis"
     p: InfotaxisParams
     obstacles: Obstacles | None = None
     city: CitySupport | None = None
+    field_solver: Executor | None = None
 
     def set_obstacles(self, obstacles: Obstacles | None) -> None:
         """The buildings the mission knows (before ``reset``): the urban model's city."""
         self.obstacles = obstacles
+
+    def set_field_solver(self, solver: Executor | None) -> None:
+        """Where the urban wind field is solved off the tick (before ``reset``; ``ste_city``)."""
+        self.field_solver = solver
 
     def pop_messages(self) -> list[str]:
         """Lines for the mission log since the last call (the urban model's state, bad readings)."""
@@ -175,7 +182,9 @@ class Infotaxis(BaseStrategy):
         self._sure_at = np.zeros(2)
         self.city = None if p.plume_model != "urban" else CitySupport(
             self.obstacles, p.urban_cell_m, p.urban_path_step_m, p.urban_path_length_m, p.urban_stall,
-            p.urban_mix_rate, p.urban_probe_above_m, p.urban_probe_s)
+            p.urban_mix_rate, p.urban_probe_above_m, p.urban_probe_s, p.altitude_m)
+        if self.city is not None:
+            self.city.solver = self.field_solver
         self.inflow: np.ndarray | None = None
         self.goal: np.ndarray | None = None  # the point the last move choice aims at (urban model)
         self._goal_t = -math.inf
@@ -235,10 +244,11 @@ class Infotaxis(BaseStrategy):
                             state="wait-wind")
         if self.city is not None and self.city.obstacles is not None and self.inflow is None:
             self.inflow = self.city.probe(obs.wind.wind_ned if obs.wind is not None else None,
-                                          float(self.start[2] - obs.position_ned[2]), dt)
-            if self.inflow is None:  # climb over the roofs and measure the inflow first
-                return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, self.city.probe_height_m),
-                                velocity_ned=np.zeros(3), state="measure-inflow")
+                                          float(self.start[2] - obs.position_ned[2]), dt, obs.t)
+        wait = None if self.city is None else self.city.waiting(self.inflow, obs.t)
+        if wait is not None and self.city is not None:  # over the roofs: measure the inflow, solve the field
+            return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, self.city.probe_height_m),
+                            velocity_ned=np.zeros(3), state=wait)
         if not self.post.ready:
             self._init_prior(obs)
         downwind, speed = wind
@@ -395,30 +405,3 @@ class Infotaxis(BaseStrategy):
         sp = super()._descend(obs, u)
         sp.credible_radius_m = self.credible_radius
         return sp
-
-    # ------------------------------------------------------------------ display
-    def posterior_map(self, cell_m: float = 1.0, extent: tuple[float, float, float, float] | None = None
-                      ) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
-        """The source posterior at flight altitude for display: (P, extent) with ``P[i, j]`` the
-        probability of cell i (north) x j (east), ``cell_m`` m square, ``extent`` = (north_min,
-        north_max, east_min, east_max) [m NED, relative to home]; default extent: the prior box's
-        bounding box. None before the first usable wind (no posterior yet)."""
-        if not self.post.ready:
-            return None
-        if extent is None:
-            extent = self._prior_extent()
-        return self.post.posterior_map(cell_m, extent)
-
-    def credible_region(self) -> tuple[np.ndarray, float] | None:
-        """(centre (north, east) [m NED], radius [m]) of the current ``credible_level`` disc (the
-        declared one after the declaration); None before the posterior exists."""
-        if not self.post.ready:
-            return None
-        c = self.declared[0:2].copy() if self.declared is not None else self.post.mean_ne()
-        return c, float(self.credible_radius)
-
-    def _prior_extent(self) -> tuple[float, float, float, float]:
-        box = self.post.prior
-        r = math.hypot(max(box.ahead, box.back), box.half_width if box.delta_sigma is not None else box.ahead)
-        o = box.origin_ne
-        return (math.floor(o[0] - r), math.ceil(o[0] + r), math.floor(o[1] - r), math.ceil(o[1] + r))

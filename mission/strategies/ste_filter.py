@@ -29,7 +29,8 @@ import numpy as np
 
 from mission.strategies.ste_history import ReadingHistory
 from mission.strategies.ste_model import accumulate, expected_information, fold, meander_nodes, meander_of
-from mission.strategies.ste_urban import UrbanModel, accumulate_urban, expected_information_urban, is_solid
+from mission.strategies.ste_urban import UrbanModel, accumulate_urban, is_solid
+from mission.strategies.ste_urban_plan import urban_information
 
 #: Resampled particles whose history likelihood sets the scale of the redrawn ones' (``weigh_step``).
 WEIGH_REFERENCE = 20
@@ -376,11 +377,7 @@ class SourcePosterior:
         phit = np.empty(len(cx))
         pn, pe, h, q, cd, sd = plan
         if self.urban is not None:
-            paths, lens = self.urban.paths(cx, cy)
-            gp, _, _, solid = self.urban.plane.args()
-            expected_information_urban(paths, lens, pz, pn, pe, h, q, cd, sd, self.mc, gp, solid, self.urban.mix_rate,
-                                       info, phit)
-            return info, phit
+            return urban_information(self.urban, cx, cy, pz, plan, self.mc)
         expected_information(np.ascontiguousarray(cx, dtype=float), np.ascontiguousarray(cy, dtype=float), pz,
                              pn, pe, h, q, cd, sd, math.cos(downwind_rad), math.sin(downwind_rad), u, self.mc,
                              info, phit)

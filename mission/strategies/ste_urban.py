@@ -27,7 +27,7 @@ adjoint advection-diffusion solve):
   within 3 m with the rules above): following the reversed flow inside a recirculation together
   with ending a mixing path at the first wall (one run with both: 4 of 10, a declaration at a
   wall 93 m off; in paper-s4-wind90 declarations in block-5's lee, 56 m off).
-- **Footprint** (:func:`accumulate_urban`, :func:`expected_information_urban`): a source
+- **Footprint** (:func:`accumulate_urban`; the move choice's ``ste_urban_plan``): a source
   hypothesis at (n, e) is placed in the path's frame: x = the travel distance to its closest
   point on the path (beyond the ends the path is extended straight), y = its signed distance
   from the path; the direction offset delta of the particle rotates (x, y) as in the open field
@@ -61,12 +61,9 @@ from numba import njit
 
 from mission.strategies.ste_model import (
     AY,
-    EPS,
     MTH2,
     R02,
     SUP2,
-    binary_entropy,
-    mean_plume_prob,
     plume_frame,
     weigh_particle,
 )
@@ -173,9 +170,10 @@ def backward_paths(px: np.ndarray, py: np.ndarray, gp: np.ndarray, un: np.ndarra
 @njit(cache=True, inline="always")
 def _on_segment(path: np.ndarray, k: int, sn: float, se: float, lo_open: bool, hi_open: bool
                 ) -> tuple[float, float, float]:
-    """(squared distance, t, signed distance) of (sn, se) to segment k of ``path`` (t in [0, 1],
-    below 0 when ``lo_open``, above 1 when ``hi_open``; the distance is to the clamped point, its
-    sign the side of the segment)."""
+    """(squared distance, t, side) of (sn, se) to segment k of ``path`` (t in [0, 1], below 0 when
+    ``lo_open``, above 1 when ``hi_open``; the distance is to the clamped point, ``side``'s sign the
+    side of the segment: the signed distance is copysign(sqrt(squared distance), side), taken only
+    for the segment kept)."""
     an, ae = path[k, P_N], path[k, P_E]
     ln, le = path[k + 1, P_N] - an, path[k + 1, P_E] - ae
     dn, de = sn - an, se - ae
@@ -188,8 +186,7 @@ def _on_segment(path: np.ndarray, k: int, sn: float, se: float, lo_open: bool, h
     if t > 1.0 and not hi_open:
         t = 1.0
     rn, re = dn - t * ln, de - t * le
-    r2 = rn * rn + re * re
-    return r2, t, math.copysign(math.sqrt(r2), ln * de - le * dn)
+    return rn * rn + re * re, t, ln * de - le * dn
 
 
 @njit(cache=True, inline="always")
@@ -212,6 +209,35 @@ def path_frame(path: np.ndarray, k_len: int, sn: float, se: float, upn: float, u
         d2 = dn * dn + de * de
         if d2 < best:
             best, kc = d2, k
+    return frame_about(path, k_len, sn, se, kc, best)
+
+
+@njit(cache=True)
+def coarse_closest(path: np.ndarray, k_len: int, n: np.ndarray, e: np.ndarray, best: np.ndarray,
+                   kc: np.ndarray) -> None:
+    """For every particle (n[i], e[i]) [m]: the closest of the path points 0, COARSE, 2 COARSE, ...
+    below ``k_len`` (the first of equals) into ``kc[i]``, its squared distance [m^2] into ``best[i]``
+    (:func:`path_frame`'s coarse stage for many sources; points outer, particles inner: the compiler
+    vectorizes it)."""
+    best[:] = np.inf
+    kc[:] = 0
+    for k in range(0, k_len, COARSE):
+        pn, pe = path[k, P_N], path[k, P_E]
+        for i in range(n.shape[0]):
+            dn = n[i] - pn
+            de = e[i] - pe
+            d2 = dn * dn + de * de
+            if d2 < best[i]:
+                best[i] = d2
+                kc[i] = k
+
+
+@njit(cache=True, inline="always")
+def frame_about(path: np.ndarray, k_len: int, sn: float, se: float, kc: int, best: float
+                ) -> tuple[float, float, float, float]:
+    """:func:`path_frame` (``k_len`` >= 2) from its coarse stage's result: ``kc`` the closest of every
+    ``COARSE``-th path point to (sn, se) [m] (the first of equals), ``best`` its squared distance [m^2]
+    (the move choice finds them for all particles at once, ``ste_urban_plan``)."""
     kb = kc
     for k in range(max(kc - COARSE + 1, 0), min(kc + COARSE, k_len)):
         dn, de = sn - path[k, P_N], se - path[k, P_E]
@@ -220,23 +246,26 @@ def path_frame(path: np.ndarray, k_len: int, sn: float, se: float, upn: float, u
             best, kb = d2, k
     kk = min(kb, k_len - 2)
     open_end = k_len == path.shape[0]  # a path that ended early met a wall: nothing beyond it
-    d2, tt, yy = _on_segment(path, kk, sn, se, kk == 0, kk == k_len - 2 and open_end)
+    d2, tt, side = _on_segment(path, kk, sn, se, kk == 0, kk == k_len - 2 and open_end)
     if kb > 0 and kb < k_len - 1:
-        d2b, tb, yb = _on_segment(path, kb - 1, sn, se, kb - 1 == 0, False)
+        d2b, tb, sb = _on_segment(path, kb - 1, sn, se, kb - 1 == 0, False)
         if d2b < d2:
-            kk, tt, yy = kb - 1, tb, yb
-    a, b = path[kk], path[kk + 1]
-    x = a[P_S] + tt * (b[P_S] - a[P_S])
+            kk, d2, tt, side = kb - 1, d2b, tb, sb
+    yy = math.copysign(math.sqrt(d2), side)
+    s0, s1 = path[kk, P_S], path[kk + 1, P_S]
+    t0, t1 = path[kk, P_T], path[kk + 1, P_T]
+    x = s0 + tt * (s1 - s0)
     tc = min(max(tt, 0.0), 1.0)
-    tau = a[P_T] + tt * (b[P_T] - a[P_T]) if tt > 1.0 else a[P_T] + tc * (b[P_T] - a[P_T])
-    return x, yy, tau, a[P_MIX] + tc * (b[P_MIX] - a[P_MIX])
+    tau = t0 + tt * (t1 - t0) if tt > 1.0 else t0 + tc * (t1 - t0)
+    return x, yy, tau, path[kk, P_MIX] + tc * (path[kk + 1, P_MIX] - path[kk, P_MIX])
 
 
 @njit(cache=True, inline="always")
-def _frame(path: np.ndarray, k_len: int, sn: float, se: float, cd: float, sd: float, pz: float, h: float,
-           q: float, gp: np.ndarray, mix_rate: float, mc: np.ndarray) -> tuple[float, float, float, float, float]:
-    """(y, g, c_peak, sigma_meander, sigma_inst^2) of a source hypothesis at the sensor (module docstring)."""
-    x0, y0, tau, mix = path_frame(path, k_len, sn, se, gp[5], gp[6])
+def plume_in_path_frame(x0: float, y0: float, tau: float, mix: float, cd: float, sd: float, pz: float, h: float,
+                        q: float, gp: np.ndarray, mix_rate: float, mc: np.ndarray
+                        ) -> tuple[float, float, float, float, float]:
+    """(y, g, c_peak, sigma_meander, sigma_inst^2) of a source hypothesis at the sensor from its place
+    (x0, y0, tau, mix) in the backward path's frame (:func:`path_frame`; module docstring)."""
     x = x0 * cd + y0 * sd
     y = -x0 * sd + y0 * cd
     u = gp[7] if tau <= 0.0 or x0 <= 0.0 else max(x0 / tau, PLUME_SPEED_FLOOR * gp[7])
@@ -249,12 +278,11 @@ def _frame(path: np.ndarray, k_len: int, sn: float, se: float, cd: float, sd: fl
 
 
 @njit(cache=True, inline="always")
-def _near(path: np.ndarray, k_len: int, sn: float, se: float, cd: float, sd: float, gp: np.ndarray,
-          mix_rate: float, mc: np.ndarray) -> bool:
-    """False when the source is more than ``FAR_SIGMAS`` of an upper bound of the mean plume's
-    crosswind sigma (a_y x, the meander, r0 and the mixing spread) off the path, or that many
-    sigma_up behind the sensor: its P(hit) is then eps to within 1e-7 (for the move choice only)."""
-    x0, y0, _, mix = path_frame(path, k_len, sn, se, gp[5], gp[6])
+def near_path(x0: float, y0: float, mix: float, cd: float, sd: float, mix_rate: float, mc: np.ndarray) -> bool:
+    """False when a source at (x0, y0, mix) in a backward path's frame (:func:`path_frame`) is more
+    than ``FAR_SIGMAS`` of an upper bound of the mean plume's crosswind sigma (a_y x, the meander, r0
+    and the mixing spread) off the path, or that many sigma_up behind the sensor: its P(hit) is then
+    eps to within 1e-7 (for the move choice only)."""
     x = x0 * cd + y0 * sd
     y = -x0 * sd + y0 * cd
     if x < -FAR_SIGMAS * math.sqrt(mc[SUP2]):
@@ -270,38 +298,21 @@ def accumulate_urban(acc: np.ndarray, alpha: np.ndarray, n: np.ndarray, e: np.nd
                      solid: np.ndarray, mix_rate: float) -> None:
     """One reading (hit or miss, sensor height pz [m]) whose backward path is ``path[:k_len]``, for
     every particle: ``ste_model.accumulate`` with the urban frame (module docstring)."""
+    best = np.empty(acc.shape[0])
+    kc = np.zeros(acc.shape[0], dtype=np.int64)
+    if k_len >= 2:
+        coarse_closest(path, k_len, n, e, best, kc)
     for i in range(acc.shape[0]):
         if is_solid(gp, solid, n[i], e[i]):
             for j in range(acc.shape[1]):
                 acc[i, j] += kappa * SOLID_LOG_PENALTY
             continue
-        y, g, cpk, sm, si2 = _frame(path, k_len, n[i], e[i], cd[i], sd[i], pz, h[i], q[i], gp, mix_rate, mc)
+        if k_len >= 2:
+            x0, y0, tau, mix = frame_about(path, k_len, n[i], e[i], kc[i], best[i])
+        else:
+            x0, y0, tau, mix = path_frame(path, k_len, n[i], e[i], gp[5], gp[6])
+        y, g, cpk, sm, si2 = plume_in_path_frame(x0, y0, tau, mix, cd[i], sd[i], pz, h[i], q[i], gp, mix_rate, mc)
         weigh_particle(acc, alpha, i, y, g, cpk, sm, si2, hit, kappa, rho, nodes, mc)
-
-
-@njit(cache=True)
-def expected_information_urban(paths: np.ndarray, lens: np.ndarray, pz: float, n: np.ndarray, e: np.ndarray,
-                               h: np.ndarray, q: np.ndarray, cd: np.ndarray, sd: np.ndarray, mc: np.ndarray,
-                               gp: np.ndarray, solid: np.ndarray, mix_rate: float, out_info: np.ndarray,
-                               out_phit: np.ndarray) -> None:
-    """``ste_model.expected_information`` at candidate points whose backward paths are ``paths[k,
-    :lens[k]]``: mutual information [bits] and predicted hit probability."""
-    m = n.shape[0]
-    for k in range(paths.shape[0]):
-        pbar = 0.0
-        hbar = 0.0
-        for i in range(m):
-            p = mc[EPS]  # a source inside a building, or far from the path, gives nothing
-            if not is_solid(gp, solid, n[i], e[i]) and _near(paths[k], lens[k], n[i], e[i], cd[i], sd[i], gp,
-                                                             mix_rate, mc):
-                y, g, cpk, sm, si2 = _frame(paths[k], lens[k], n[i], e[i], cd[i], sd[i], pz, h[i], q[i], gp,
-                                            mix_rate, mc)
-                p = mean_plume_prob(y, g, cpk, sm, si2, mc)
-            pbar += p
-            hbar += binary_entropy(p)
-        pbar /= m
-        out_phit[k] = pbar
-        out_info[k] = binary_entropy(pbar) - hbar / m
 
 
 class UrbanModel:
