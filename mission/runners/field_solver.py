@@ -15,7 +15,9 @@ field is the same function of the same inflow and buildings as in the tick.
 
 from __future__ import annotations
 
+import asyncio
 import multiprocessing
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
@@ -45,3 +47,22 @@ def field_solver_for(strategy: Any, params: CommonParams, obstacles: Obstacles |
     pool.submit(warm_up)
     hook(pool)
     return pool
+
+
+def _ready() -> bool:
+    return True
+
+
+async def warmed(pool: ProcessPoolExecutor, limit_s: float, say: Callable[[str], None]) -> bool:
+    """Wait (at most ``limit_s`` wall seconds) until the worker has finished its warm-up: a no-op queued behind
+    it on the one worker comes back after it. Before take-off, so that the solve in flight is the 0.5 s of the
+    field alone and not a cold start's imports and compilation (which, on a loaded machine at a SITL speed-up,
+    outran the strategy's cap on the hover: ``ste_city.FIELD_SOLVE_LIMIT_S`` vehicle seconds). False (said) if
+    the worker is not ready by then; the mission goes on and the cap still holds."""
+    try:
+        await asyncio.wait_for(asyncio.wrap_future(pool.submit(_ready)), limit_s)
+        return True
+    except (TimeoutError, OSError, RuntimeError) as e:
+        say(f"the urban field's worker is not ready after {limit_s:g} s ({type(e).__name__}): flying on, the solve "
+            "may run past its cap")  # fmt: skip
+        return False

@@ -39,7 +39,7 @@ from mission.loop import LoopConfig, MissionLoop, MissionWind
 from mission.result import MissionError, MissionResult
 from mission.runners import ardupilot
 from mission.runners.fence import SiteBuildings, place_buildings
-from mission.runners.field_solver import field_solver_for
+from mission.runners.field_solver import field_solver_for, warmed
 from mission.runners.live_wind import ESTIMATOR_MESSAGES, EstimatedLiveWind, NoLiveWind, WindCovWind
 from mission.runners.mavsdk_vehicle import LinkConfig, MavsdkVehicle
 from mission.safety import SafetyLimits
@@ -54,6 +54,9 @@ from vehicle.vehicle_file import load_vehicle
 DLL_PARAM, DLL_LAND = "NAV_DLL_ACT", 3
 #: The system id MAVSDK takes as a ground station (``ComponentType.GROUND_STATION``: 245, component 190).
 MAVSDK_GCS_SYSID = 245
+#: Wall seconds the runner waits, before take-off, for the urban field's worker to warm up (a spawned process:
+#: imports and numba kernels, 2-10 s on a loaded machine; mission.runners.field_solver.warmed).
+WARM_LIMIT_S = 60.0
 
 __all__ = ["MissionConfig", "MissionError", "MissionResult", "run_mission"]
 
@@ -144,6 +147,8 @@ async def run_mission(cfg: MissionConfig) -> MissionResult:
                     raise MissionError(f"buildings: {e}") from None
             strategy = make_strategy(cfg.strategy)
             solver = field_solver_for(strategy, params, obstacles)  # the urban field off the event loop
+            if solver is not None:
+                await warmed(solver, WARM_LIMIT_S, cfg.say)
             loop = MissionLoop(v, strategy, params, wind, cfg.limits,
                                LoopConfig(cfg.takeoff_timeout_s, cfg.land_timeout_s, cfg.hold_s, cfg.link_grace_s),
                                seed=cfg.seed, obstacles=obstacles)  # fmt: skip
