@@ -156,6 +156,18 @@ def _push_out(
 
 
 @njit(cache=True)
+def edge_normal(e: int, b: int, verts: np.ndarray, offsets: np.ndarray) -> tuple[float, float]:
+    """Outward unit normal (north, east) of edge e (first vertex index) of building b."""
+    i0 = offsets[b]
+    n = offsets[b + 1] - i0
+    k = e - i0
+    ax, ay = verts[e, 0], verts[e, 1]
+    bx, by = verts[i0 + (k + 1) % n, 0], verts[i0 + (k + 1) % n, 1]
+    ln = math.hypot(bx - ax, by - ay)
+    return (by - ay) / ln, -(bx - ax) / ln
+
+
+@njit(cache=True)
 def reflect_point(
     qx: float, qy: float, qh: float, px: float, py: float, ph: float,
     verts: np.ndarray, offsets: np.ndarray, heights: np.ndarray, bbox: np.ndarray,
@@ -179,13 +191,8 @@ def reflect_point(
             ph = 2.0 * heights[b] - ph
             ch += PUSH_OUT_M
         else:
-            i0 = offsets[b]
-            n = offsets[b + 1] - i0
-            k = face - i0
+            ox, oy = edge_normal(face, b, verts, offsets)
             ax, ay = verts[face, 0], verts[face, 1]
-            bx, by = verts[i0 + (k + 1) % n, 0], verts[i0 + (k + 1) % n, 1]
-            ln = math.hypot(bx - ax, by - ay)
-            ox, oy = (by - ay) / ln, -(bx - ax) / ln
             d = (px - ax) * ox + (py - ay) * oy  # < 0: depth behind the wall
             px -= 2.0 * d * ox
             py -= 2.0 * d * oy

@@ -47,6 +47,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .geometry import edge_normal
+
 ZONE_SOLID = -1
 ZONE_FREE = 0
 ZONE_UPWIND = 1
@@ -99,18 +101,6 @@ def front_back(
         if s > sb:
             sb, eb = s, i0 + k
     return found, sf, sb, ef, eb
-
-
-@njit(cache=True)
-def edge_normal(e: int, b: int, verts: np.ndarray, offsets: np.ndarray) -> tuple[float, float]:
-    """Outward unit normal (north, east) of edge e (first vertex index) of building b."""
-    i0 = offsets[b]
-    n = offsets[b + 1] - i0
-    k = e - i0
-    ax, ay = verts[e, 0], verts[e, 1]
-    bx, by = verts[i0 + (k + 1) % n, 0], verts[i0 + (k + 1) % n, 1]
-    ln = math.hypot(bx - ax, by - ay)
-    return (by - ay) / ln, -(bx - ax) / ln
 
 
 @njit(cache=True)
