@@ -199,7 +199,8 @@ def trial_px4(binary: Path, scenario: str, seed: int, args: argparse.Namespace, 
 
 def _est_args(args: argparse.Namespace, out: Path) -> list[str]:
     """The estimator's input telemetry log (for ``benchmarks/compass_replay.py``) and its compass setting."""
-    return ["--tlog", str(out / "estimator.tlog"), "--compass" if args.compass else "--no-compass"]
+    return ["--tlog", str(out / "estimator.tlog"), "--compass" if args.compass else "--no-compass",
+            "--px4-scaled-imu-hz", str(args.px4_scaled_imu_hz)]
 
 
 def fly_route_px4(tel: Any, route: list[tuple[float, ...]], timeout_s: float = 60.0) -> None:
@@ -279,6 +280,8 @@ def main() -> int:
     ap.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot")
     ap.add_argument("--compass", action=argparse.BooleanOptionalAction, default=True,
                     help="the estimator's compass check of the autopilot's heading (estimator/compass.py)")
+    ap.add_argument("--px4-scaled-imu-hz", type=float, default=10.0,
+                    help="the estimator's rate for PX4's SCALED_IMU (100: enough to replay it as the IMU input)")
     ap.add_argument("--rrd", action="store_true", help="also write each flight's Rerun recording (windseek.rrd in "
                     "its --keep directory): the truth, windseek's UKF and the autopilot's own estimate")
     args = ap.parse_args()

@@ -2,8 +2,9 @@
 
 ``benchmarks/autopilot_wind.py --keep DIR`` leaves, per flight, the messages ``windseek estimator`` received
 (``estimator.tlog``) and windseek's recording with the truth (``windseek.rrd``, with ``--rrd``). This replays
-each log through :class:`estimator.live.LiveCore` three times (:func:`VARIANTS`: neither the compass check of
-``estimator/compass.py`` nor the autopilot's own heading sigma, the check alone, both), so all see the very
+each log through :class:`estimator.live.LiveCore` three or four times (:func:`VARIANTS`: neither the compass
+check of ``estimator/compass.py`` nor the autopilot's own heading sigma, the check alone, both, and on PX4
+flights whose log holds the CAL_MAG parameters the check on the raw field), so all see the very
 same samples, and scores each against the truth: RMSE of 1-s means of the horizontal wind (the issue's
 figure), the 95 % coverage of the stated horizontal uncertainty, and the heading error of the autopilot's
 published attitude against windseek's true one.
@@ -34,20 +35,42 @@ from toolchain import numba_cache  # noqa: E402 - before any kernel module
 
 numba_cache.configure()
 from estimator import mavlink_decode as dec  # noqa: E402
+from estimator import px4_mag  # noqa: E402
 from estimator.compass import CompassConfig  # noqa: E402
 from estimator.live import LiveConfig, LiveCore  # noqa: E402
+from estimator.px4_mag import Px4MagCalibration  # noqa: E402
 from recording.read import RrdLog  # noqa: E402
 from vehicle.frames import quat_to_dcm  # noqa: E402
 from vehicle.vehicle_file import load_vehicle  # noqa: E402
+from wire import param_codec  # noqa: E402
 
 CHI2_95_2DOF = 5.991
 
 
 def VARIANTS(sigma_deg: float) -> dict[str, CompassConfig]:  # noqa: N802 - a table
-    """before: neither the check nor the autopilot's heading sigma; compass: the check alone; both."""
+    """before: neither the check nor the autopilot's heading sigma; compass: the check alone; both; raw: the
+    check on PX4's SCALED_IMU field calibrated with the CAL_MAG parameters in the log (flights whose estimator
+    read them: ``windseek/estimator_px4_mag.py``), the compass's sigma alone."""
     return {"before": CompassConfig(enabled=False, autopilot_sigma=False),
             "compass": CompassConfig(sigma_deg=sigma_deg, autopilot_sigma=False),
-            "both": CompassConfig(sigma_deg=sigma_deg)}  # fmt: skip
+            "both": CompassConfig(sigma_deg=sigma_deg),
+            "raw": CompassConfig(sigma_deg=sigma_deg),
+            "sc-before": CompassConfig(enabled=False, autopilot_sigma=False),
+            "sc-raw": CompassConfig(sigma_deg=sigma_deg)}  # fmt: skip
+
+
+#: Variants that need PX4's calibration from the log; those on SCALED_IMU's accelerometer and gyro ("sc-":
+#: the IMU without EKF2's bias estimates, HIGHRES_IMU left out) need it streamed fast enough to be the input.
+RAW_FIELD = ("raw", "sc-raw")
+SCALED_IMU_INPUT = ("sc-before", "sc-raw")
+
+
+def px4_calibration(msgs: list[Any]) -> Px4MagCalibration | None:
+    """PX4's magnetometer calibration from the PARAM_VALUE answers in a log, None without (or unusable)."""
+    values = {str(m.param_id).rstrip("\x00"): float(param_codec.decode(float(m.param_value), int(m.param_type)))
+              for m in msgs if m.get_type() == "PARAM_VALUE"}  # fmt: skip
+    cal = px4_mag.from_params(values) if values else None
+    return cal if isinstance(cal, Px4MagCalibration) else None
 
 
 def read_tlog(path: Path) -> list[Any]:
@@ -92,10 +115,13 @@ def lift_off_s(t: np.ndarray, alt: np.ndarray) -> float:
     return float(t[above[0]])
 
 
-def replay(msgs: list[Any], compass: CompassConfig, imu_average: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def replay(msgs: list[Any], compass: CompassConfig, imu_average: int,
+           cal: Px4MagCalibration | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """(autopilot times s, wind NED, covariance) every 0.1 s of the replayed estimator's output."""
     core = LiveCore(LiveConfig(vehicle=load_vehicle("nasa_quad"), imu_average=imu_average, esc_component=158,
                                compass=compass))  # fmt: skip
+    if cal is not None:
+        core.compass_feed.set_px4_calibration(cal)
     ts, ws, cs = [], [], []
     next_t = -math.inf
     for m in msgs:
@@ -152,7 +178,14 @@ def flight(d: Path, imu_average: int, sigma_deg: float) -> dict[str, Any]:
     truth = (tn, wn, log.scalars("wind/east/truth")[1])
     t0, t1 = lift_off_s(tr, alt_r) + 10.0, float(tn[-1])
     row: dict[str, Any] = {"flight": d.name}
-    runs = {name: replay(msgs, cfg, imu_average) for name, cfg in VARIANTS(sigma_deg).items()}
+    cal = px4_calibration(msgs)
+    n_sc = sum(1 for m in msgs if m.get_type() == "SCALED_IMU")
+    fast_sc = n_sc > 0.5 * sum(1 for m in msgs if m.get_type() == "HIGHRES_IMU")
+    no_hr = [m for m in msgs if m.get_type() != "HIGHRES_IMU"] if fast_sc else []
+    runs = {name: replay(no_hr if name in SCALED_IMU_INPUT else msgs, cfg, imu_average,
+                         cal if name in RAW_FIELD else None)
+            for name, cfg in VARIANTS(sigma_deg).items()
+            if (name not in RAW_FIELD or cal is not None) and (name not in SCALED_IMU_INPUT or fast_sc)}  # fmt: skip
     t, w, _ = runs["before"]
     sel = (t + rough > t0) & (t + rough < t1 - 3.0)
 
@@ -163,6 +196,8 @@ def flight(d: Path, imu_average: int, sigma_deg: float) -> dict[str, Any]:
     row["clock_offset_s"] = round(float(offset), 2)
     for name, (t, w, c) in runs.items():
         row[name] = score(t + offset, w, c, truth, t0, t1)
+    for name in VARIANTS(sigma_deg):
+        row.setdefault(name, {"rmse_1s_h": math.nan, "coverage_95_h": math.nan, "seconds": 0.0})
     herr = heading_errors(msgs, log, offset, t0)
     row["heading_error_deg"] = {"mean": float(herr.mean()), "max_abs": float(np.abs(herr).max())}
     return row
@@ -189,8 +224,11 @@ def main() -> int:
         cells = "  ".join(f"{r[n]['rmse_1s_h']:>17.3f}, {r[n]['coverage_95_h']:.3f}" for n in names)
         print(f"{r['flight']:<18} {h['mean']:>+11.2f} / {h['max_abs']:<10.2f}  {cells}", flush=True)
     for name in names:
-        pooled = math.sqrt(float(np.mean([r[name]["rmse_1s_h"] ** 2 for r in rows])))
-        cov = float(np.mean([r[name]["coverage_95_h"] for r in rows]))
+        rs = [r for r in rows if r[name]["seconds"]]
+        if not rs:
+            continue
+        pooled = math.sqrt(float(np.mean([r[name]["rmse_1s_h"] ** 2 for r in rs])))
+        cov = float(np.mean([r[name]["coverage_95_h"] for r in rs]))
         print(f"pooled, {name:<8}: 1-s horizontal RMSE {pooled:.3f} m/s, coverage {cov:.3f}")
     return 0
 

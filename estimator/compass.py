@@ -85,6 +85,12 @@ class CompassHeading:
         self.declination_rad = math.atan2(e, n)
         self.inclination_rad = math.atan2(d, h)
 
+    def restart(self) -> None:
+        """Forget the averaged offset (the field now comes from another source); the Earth's field is kept."""
+        self._c = self._s = 0.0
+        self._n = 0
+        self._t = None
+
     def locate(self, lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> bool:
         """Take the field of the World Magnetic Model at a geodetic position (once; later calls do nothing).
         False for a position that is not one (NaN, out of range, 0/0 as an autopilot sends without a fix)."""

@@ -32,6 +32,7 @@ import numpy as np
 
 from estimator import mavlink_decode as dec
 from estimator.compass import CompassConfig, CompassHeading
+from estimator.compass_feed import CompassFeed
 from estimator.config import EstimatorConfig
 from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withheld
 from estimator.live_select import InputSelection, filter_waiting_line
@@ -40,7 +41,6 @@ from estimator.motor_output import OutputMap
 from estimator.rpm_free import MotorCommandModel
 from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR
 from estimator.ukf import WindEstimator
-from vehicle.frames import quat_to_dcm
 from vehicle.params import VehicleParams
 
 MAV_AUTOPILOT_INVALID = 8
@@ -101,9 +101,8 @@ class LiveCore:
         self.restarts = 0
         self.model_note: str | None = None
         self.fit = ModelFit(cfg.vehicle)
-        self.compass = CompassHeading(cfg.compass)
-        self._R_pub: np.ndarray | None = None  # the attitude the autopilot published last (DCM body -> NED)
-        self.autopilot_yaw_sigma: float | None = None  # the heading 1-sigma the autopilot states (rad)
+        self.compass_feed = CompassFeed(cfg.compass)  # the compass check's inputs (estimator.compass_feed)
+        self.compass: CompassHeading = self.compass_feed.heading
         self.autopilot_kind: int | None = None  # MAV_AUTOPILOT of the autopilot locked on to
         self._esc_order = cfg.esc_order or tuple(range(cfg.vehicle.n_rotors))
         if cfg.airframe:
@@ -204,9 +203,11 @@ class LiveCore:
         elif mtype == "ESC_INFO":
             self._esc_info(msg)
         elif mtype in dec.POSITION_TYPES and self.compass.declination_rad is None:
-            self._locate(msg)
+            self._say(self.compass_feed.locate(msg))
         elif mtype == "ODOMETRY":
-            self.autopilot_yaw_sigma = dec.yaw_sigma(msg)
+            self.compass_feed.autopilot_yaw_sigma = dec.yaw_sigma(msg)
+        elif mtype == "SCALED_IMU" and self.compass_feed.px4 is not None:  # PX4's raw field, whatever the IMU input
+            self._say(self.compass_feed.magnetometer(mtype, msg, t if t is not None else self.t, self.autopilot_kind))
         group = dec.GROUP_OF.get(mtype)
         if group is None:
             return
@@ -220,8 +221,10 @@ class LiveCore:
             self.note(self.select.inputs_line() + f" ({group} now from {mtype})")
         if self.select.chosen.get(group) != mtype:
             return
-        if group in ("imu", "attitude"):  # on the ground too: the heading is checked before take-off
-            self._compass(group, msg, t if t is not None else self.t)
+        if group == "attitude":  # on the ground too: the heading is checked before take-off
+            self.compass_feed.attitude(msg)
+        elif group == "imu":
+            self._say(self.compass_feed.magnetometer(mtype, msg, t if t is not None else self.t, self.autopilot_kind))
         paused = self.paused()
         if self.config.ground_gate:
             self._liftoff.update(self.t, self.landed_state == LANDED_ON_GROUND, self._height(mtype, msg))
@@ -321,24 +324,9 @@ class LiveCore:
     def _mismatch(self, what: str) -> str:
         return f"model mismatch: {what}, but the force model is {self.config.vehicle.name}'s: the wind is biased"
 
-    def _locate(self, msg: Any) -> None:
-        """The Earth's field for the compass check from the first position the autopilot reports."""
-        pos = dec.position(msg)
-        if pos is not None and self.compass.locate(*pos) and self.config.compass.enabled:
-            d = math.degrees(self.compass.declination_rad or 0.0)
-            self.note(f"compass: the autopilot's heading is checked against its magnetometer (declination {d:.2f} "
-                      f"deg at {pos[0]:.4f}, {pos[1]:.4f})")  # fmt: skip
-
-    def _compass(self, group: str, msg: Any, t: float) -> None:
-        """Hold the published attitude; give the compass check each magnetometer sample with it."""
-        if group == "attitude":
-            self._R_pub = None if (q := dec.attitude(msg)) is None else quat_to_dcm(q)
-        elif (mag := dec.magnetometer(msg, self.autopilot_kind)) is not None and self._R_pub is not None:
-            was_ready = self.compass.ready
-            self.compass.sample(t, mag, self._R_pub)
-            if self.compass.ready and not was_ready:
-                self.note(f"compass: the autopilot's heading is {math.degrees(self.compass.offset_rad):+.1f} deg off "
-                          "its magnetometer's; the attitude is corrected by the running offset")  # fmt: skip
+    def _say(self, note: str | None) -> None:
+        if note:
+            self.note(note)
 
     def _esc_info(self, msg: Any) -> None:
         for i, flags in enumerate(msg.failure_flags):
@@ -355,8 +343,7 @@ class LiveCore:
             if q is None:
                 est._reject("attitude:bad_value")
             else:
-                ap = self.autopilot_yaw_sigma if self.config.compass.autopilot_sigma else None
-                est.set_heading_sigma(max(self.compass.sigma_rad, ap or 0.0))
+                est.set_heading_sigma(self.compass_feed.heading_sigma())
                 est.set_attitude(t, self.compass.correct(q))
         elif group == "velocity":
             v = dec.velocity(msg)
@@ -440,6 +427,5 @@ class LiveCore:
             "rejected": dict(e.rejected),
             "counters": dict(self.counters),
             "restarts": self.restarts,
-            "compass": {**self.compass.summary(), "autopilot_yaw_sigma_deg": None if self.autopilot_yaw_sigma is None
-                        else round(math.degrees(self.autopilot_yaw_sigma), 2)},
+            "compass": self.compass_feed.summary(),
         }

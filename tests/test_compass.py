@@ -142,7 +142,7 @@ def test_the_autopilots_own_heading_sigma_is_carried_when_larger(flight: Flight)
     """Without a usable compass, an autopilot that states its heading uncertainty (PX4's ODOMETRY) has it
     carried in the covariance: a 5 deg error inside a stated 4 deg is covered, and the check can be turned off."""
     rmse, cov, core = _run(flight, CompassConfig(), 5.0, mag=False, odometry_deg=4.0)
-    assert core.autopilot_yaw_sigma == pytest.approx(math.radians(4.0))
+    assert core.compass_feed.autopilot_yaw_sigma == pytest.approx(math.radians(4.0))
     assert rmse > 0.6 and cov > 0.9  # the error is there, and stated
     _, cov_without, _ = _run(flight, CompassConfig(autopilot_sigma=False), 5.0, mag=False, odometry_deg=4.0)
     assert cov_without < 0.75

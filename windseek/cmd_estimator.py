@@ -37,8 +37,9 @@ import numpy as np
 
 from estimator.live import LiveConfig, LiveCore
 from estimator.mavlink_adapter import wind_cov_message
-from estimator.mavlink_decode import PREFERENCE
+from estimator.mavlink_decode import MAV_AUTOPILOT_PX4, PREFERENCE
 from estimator.worker import warm_up
+from windseek.estimator_px4_mag import Px4MagSetup
 from wire.jsonsafe import json_safe
 from wire.names import ESTIMATOR_COMPONENT
 from wire.urls import pymavlink_url  # in wire/: the mission's signing bridge uses it too
@@ -123,6 +124,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "offset (estimator/compass.py; default on)")
     p.add_argument("--compass-sigma-deg", type=float, default=1.0, metavar="DEG",
                    help="stated 1-sigma of the compass heading (calibration, declination, interference)")
+    p.add_argument("--px4-raw-compass", action=argparse.BooleanOptionalAction, default=True,
+                   help="on PX4: read its CAL_MAG parameters and check the heading against SCALED_IMU's raw field "
+                   "calibrated with them, not HIGHRES_IMU's, which has EKF2's magnetometer bias taken out "
+                   "(windseek/estimator_px4_mag.py; default on)")
+    p.add_argument("--px4-scaled-imu-hz", type=float, default=10.0, metavar="HZ",
+                   help="rate asked for PX4's SCALED_IMU when its raw field is taken (default 10)")
     p.add_argument("--tlog", default=None, metavar="PATH",
                    help="write every message received to this telemetry log (replay: benchmarks/compass_replay.py)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
@@ -226,7 +233,7 @@ def request_rates(conn: Any, core: LiveCore, mode: str, say: Any) -> None:
                                    float(msg_id), 1e6 / STATE_HZ, 0, 0, 0, 0, 0)  # fmt: skip
         say(f"requested EXTENDED_SYS_STATE (message {msg_id}) at {STATE_HZ:g} Hz for the landed state")
     # The autopilot's own heading uncertainty (PX4: EKF2's yaw variance in ODOMETRY) for the stated covariance.
-    if core.config.compass.autopilot_sigma and (mode == "always" or core.autopilot_yaw_sigma is None):
+    if core.config.compass.autopilot_sigma and (mode == "always" or core.compass_feed.autopilot_yaw_sigma is None):
         msg_id = mavlink.MAVLINK_MSG_ID_ODOMETRY
         conn.mav.command_long_send(core.target[0], core.target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                    float(msg_id), 1e6 / STATE_HZ, 0, 0, 0, 0, 0)  # fmt: skip
@@ -289,6 +296,7 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
     if sends_first:
         _heartbeat(conn)  # a udpout peer only learns our address from what we send
     t_request: float | None = None
+    mag_setup: Px4MagSetup | None = None
     reason = ""
     while not stop:
         now = time.monotonic()
@@ -297,6 +305,11 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
         if t_request is not None and now >= t_request:
             request_rates(conn, core, args.request_rates, say)  # after 1 s of listening: what is missing
             t_request = None
+            if args.px4_raw_compass and args.compass and core.autopilot_kind == MAV_AUTOPILOT_PX4:
+                mag_setup = Px4MagSetup(core, say, rate_hz=args.px4_scaled_imu_hz)
+                mag_setup.start(now)
+        if mag_setup is not None:
+            mag_setup.poll(conn, now)
         if now - last_hb >= 1.0 and (core.target is not None or sends_first):
             _heartbeat(conn)
             last_hb = now
@@ -321,6 +334,8 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
         if tlog is not None:
             _log_frame(tlog, msg)
         had_target = core.target is not None
+        if mag_setup is not None:
+            mag_setup.on_message(msg)
         core.handle(msg)
         for note in core.take_notes():
             say(note)

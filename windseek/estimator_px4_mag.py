@@ -1,0 +1,108 @@
+"""``windseek estimator`` on PX4: read PX4's magnetometer calibration and take the compass from SCALED_IMU.
+
+Why (``estimator/px4_mag.py``): PX4's HIGHRES_IMU field has EKF2's magnetometer bias taken out, which hides
+part of an EKF2 heading error from the compass check; SCALED_IMU carries the raw field, which the estimator
+calibrates itself with PX4's ``CAL_MAGn_*`` and ``SENS_BOARD_*`` parameters.
+
+How, after lock-on to an autopilot that says it is PX4: PARAM_REQUEST_READ by name, first the board's four
+parameters and every slot's ``CAL_MAGn_ID`` / ``_PRIO``, then the fields of the enabled slots; up to
+:data:`BATCH` requests at a time, what is missing asked again every :data:`RETRY_S`, all within
+``timeout_s`` of wall time. Then SCALED_IMU is asked for at :data:`SCALED_IMU_HZ` (SET_MESSAGE_INTERVAL) and
+the calibration handed to the core, or one line says why the field stays HIGHRES_IMU's (a parameter not
+read in time, several compasses, a power compensation). PX4 sends INT32 parameters bytewise in the float
+field (``wire.param_codec``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from estimator import px4_mag
+from estimator.live import LiveCore
+from wire import param_codec
+
+BATCH = 8  # requests in flight at once (PX4 answers from a short queue)
+RETRY_S = 1.0  # a name not answered is asked again after this [s]
+SCALED_IMU_HZ = 10.0  # the compass check low-passes over 5 s: 10 Hz is plenty, and light on a radio link
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MSG_ID_SCALED_IMU = 26
+
+
+class Px4MagSetup:
+    """The read of PX4's calibration as a small state machine driven by the estimator's loop (module docstring)."""
+
+    def __init__(self, core: LiveCore, say: Callable[[str], None], timeout_s: float = 8.0,
+                 rate_hz: float = SCALED_IMU_HZ) -> None:  # fmt: skip
+        if not (math.isfinite(rate_hz) and rate_hz > 0.0):
+            raise ValueError(f"SCALED_IMU rate {rate_hz} Hz: must be > 0")
+        self.rate_hz = rate_hz
+        self.core = core
+        self.say = say
+        self.timeout_s = timeout_s
+        self.values: dict[str, float] = {}
+        self._wanted: list[str] = []
+        self._asked: dict[str, float] = {}
+        self._t0: float | None = None
+        self.finished = False
+        self.result: str | None = None  # the line said at the end
+
+    def start(self, now: float) -> None:
+        """Begin with the board's parameters and every slot's id and priority."""
+        self._t0 = now
+        self._wanted = list(px4_mag.BOARD_PARAMS) + [f"CAL_MAG{i}_{f}" for i in range(px4_mag.SLOTS)
+                                                     for f in ("ID", "PRIO")]  # fmt: skip
+
+    def on_message(self, msg: Any) -> None:
+        """Take a PARAM_VALUE this setup asked for (others are ignored)."""
+        if self._t0 is None or self.finished or msg.get_type() != "PARAM_VALUE":
+            return
+        name = msg.param_id.rstrip("\x00") if isinstance(msg.param_id, str) else str(msg.param_id)
+        if name in self._wanted and name not in self.values:
+            self.values[name] = float(param_codec.decode(float(msg.param_value), int(msg.param_type)))
+
+    def poll(self, conn: Any, now: float) -> None:
+        """Send what is due, move to the slot's fields, or finish (bounded by ``timeout_s``)."""
+        if self._t0 is None or self.finished:
+            return
+        missing = [n for n in self._wanted if n not in self.values]
+        if not missing and len(self._wanted) <= len(px4_mag.BOARD_PARAMS) + 2 * px4_mag.SLOTS:
+            for slot in px4_mag.enabled_slots(self.values):
+                self._wanted += [f"CAL_MAG{slot}_{f}" for f in px4_mag.SLOT_FIELDS if f not in ("ID", "PRIO")]
+            missing = [n for n in self._wanted if n not in self.values]
+        if not missing:
+            self._finish(conn)
+            return
+        if now - self._t0 > self.timeout_s:
+            self._finish(conn)
+            return
+        target = self.core.target
+        if target is None:
+            return
+        in_flight = sum(1 for n in missing if now - self._asked.get(n, -1e9) < RETRY_S)
+        for name in missing:
+            if in_flight >= BATCH:
+                break
+            if now - self._asked.get(name, -1e9) >= RETRY_S:
+                conn.mav.param_request_read_send(target[0], target[1], name.encode(), -1)
+                self._asked[name] = now
+                in_flight += 1
+
+    def _finish(self, conn: Any) -> None:
+        self.finished = True
+        cal = px4_mag.from_params(self.values)
+        if isinstance(cal, str):
+            self.result = f"compass: the field stays the IMU message's (PX4's calibration not redone: {cal})"
+            self.say(self.result)
+            return
+        target = self.core.target
+        if target is not None:
+            conn.mav.command_long_send(target[0], target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0, float(MSG_ID_SCALED_IMU),
+                                       1e6 / self.rate_hz, 0, 0, 0, 0, 0)  # fmt: skip
+        self.result = self.core.compass_feed.set_px4_calibration(cal)
+        self.say(self.result)
+        self.say(f"requested SCALED_IMU (message {MSG_ID_SCALED_IMU}) at {self.rate_hz:g} Hz for the raw field")
+
+
+__all__ = ["Px4MagSetup"]
