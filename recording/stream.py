@@ -287,7 +287,7 @@ class RecorderBase:
                       carried: dict[str, float] | None = None) -> None:  # fmt: skip
         """Buffer one row of a scalar entity that holds several series (:mod:`recording.series`): its
         ``Scalars`` instances (a value that is not finite is sent as NaN: a gap) and the components it
-        carries (column name -> value)."""
+        carries (column name -> value; every row of an entity gives the same ones)."""
         if not self.shared_rows:  # each series its own entity
             for name, v in zip(row_series(entity), values, strict=True):
                 self._push(name, t, v)
