@@ -6,8 +6,9 @@ typical run) and queried by entity path. Paths may be given with or without the 
 
     from recording.read import RrdLog
     log = RrdLog("logs/run.rrd")
-    log.entity_paths()                     # ['chem/threshold', 'chem/value', ..., 'world/vehicle']
-    t, v = log.scalars("rotors/1")         # t [s] (N,), v (N,) sorted by vehicle time
+    log.entity_paths()                     # ['chem/log10', ..., 'rotors', ..., 'world/vehicle']
+    t, v = log.scalars("rotors/1")         # a series by name, wherever stored: t [s] (N,), v (N,) by time
+    log.series()                           # every scalar series' name: [..., 'chem/value', ..., 'rotors/1', ...]
     t, lo, hi = log.band("wind/north/band")  # the +-2 sigma band's edges
     t, p = log.vectors("world/vehicle", "Transform3D:translation")   # (N,), (N, 3)
     t, imgs = log.images("map/posterior/image")   # H x W x 4 uint8 each, raw or PNG
@@ -27,6 +28,7 @@ from rerun.chunk import Chunk, RrdReader
 
 from recording.layout import Layout
 from recording.png import decode_png
+from recording.series import ROWS, Storage, carried_by, row_series, storage
 from recording.style import TIMELINE
 from recording.summary import RunSummary
 
@@ -166,9 +168,26 @@ class RrdLog:
         order = np.argsort(np.asarray(ts), kind="stable")
         return np.asarray(ts)[order], [vals[i] for i in order]
 
+    def series(self) -> list[str]:
+        """The names of every scalar series with rows, those sharing rows included (:mod:`recording.series`)."""
+        out: set[str] = set()
+        for e in self.temporal_entity_paths():
+            comps = self.components(e)
+            if SCALARS in comps:
+                out.update(row_series(e) if e in ROWS else (e,))
+            out.update(s for c, s in carried_by(e).items() if c in comps)
+        return sorted(out)
+
     def scalars(self, entity: str, timeline: str = TIMELINE) -> tuple[np.ndarray, np.ndarray]:
-        """A scalar series: t [s] (N,) and values (N,) (or (N, k) if each row holds k scalars)."""
-        t, vals = self.column(entity, SCALARS, timeline)
+        """A scalar series by name: t [s] (N,) and values (N,) (or (N, k) if each row holds k scalars).
+
+        A series sharing rows with others (``rotors/2``, ``chem/value``: :mod:`recording.series`) is read
+        where it is stored; a recording made before they shared rows has it as an entity of its own."""
+        e = _norm(entity)
+        where = storage(e)
+        if where != Storage(e, SCALARS, None) and e not in self._chunks:
+            return self._stored(where, timeline)
+        t, vals = self.column(e, SCALARS, timeline)
         rows = [np.asarray(v, dtype=float).ravel() for v in vals]
         if not rows:
             return t, np.zeros(0)
@@ -176,6 +195,14 @@ class RrdLog:
         if arr.ndim == 2 and arr.shape[1] == 1:
             arr = arr[:, 0]
         return t, arr
+
+    def _stored(self, where: Storage, timeline: str) -> tuple[np.ndarray, np.ndarray]:
+        """One series of the rows of an entity that holds several: no value where it has none (NaN)."""
+        t, vals = self.column(where.entity, where.component, timeline)
+        i = 0 if where.instance is None else where.instance
+        v = np.array([float(x[i]) if isinstance(x, list) else float(x) for x in vals])
+        ok = np.isfinite(v)
+        return t[ok], v[ok]
 
     def band(self, entity: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A +-2 sigma band (``wind/<axis>/band``, written as two rows per sample): t [s] (N,), lower

@@ -15,8 +15,9 @@ Entity paths besides the map and 3D ones (:mod:`recording.scene`)::
                                        series' previous one (the first within 180 deg of the reference), so
                                        the line never jumps by 360 deg; a turning wind runs past 0 or 360
     flight/...                         altitude, velocity, attitude, battery, GPS (:mod:`recording.flight_plots`)
-    chem/value, chem/threshold         mg/m^3 (the data);  chem/log10, chem/threshold_log10 (the plot)
-    rotors/{1,2,3,4}                   rad/s
+    chem/log10, chem/threshold_log10   log10 mg/m^3 (the plot); each row also carries the reading (the threshold)
+                                       in mg/m^3 as ``Chem:mg_m3``: the series chem/value, chem/threshold
+    rotors                             rad/s, 4 values a row: the series rotors/1 .. rotors/4 (recording.series)
     extra/<name>                       any other scalar (:meth:`RunRecorder.scalar`)
     phases/{mission,strategy,mode}     StateChange lanes: mission phase, strategy state, flight mode
     markers/{phase,verify,declared}    vertical lines at the phases (written at close)
@@ -48,6 +49,7 @@ from recording.flight_plots import FLIGHT_SERIES, FlightPlotsMixin
 from recording.layout import OPTIONAL_PLOTS, PLOTS, Layout, make_blueprint
 from recording.phases import MARKER_KINDS
 from recording.ranges import fit_ranges
+from recording.series import CARRIED, row_styles
 from recording.style import (
     AXES,
     C_AUTOPILOT,
@@ -57,7 +59,6 @@ from recording.style import (
     C_MARK_PHASE,
     C_MARK_VERIFY,
     C_RAW,
-    C_ROTORS,
     C_THRESH,
     C_TRUTH,
     PHASE_COLORS,
@@ -103,6 +104,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         footer: end the file with rerun's chunk manifest (``RecorderBase``: a batch trial leaves it out).
         png_images: send a posterior and the urban layers' static images as PNGs (the same pixels, less
             than half the bytes, :mod:`recording.png`), else as raw RGBA (``rr.Image``, as before 2026-12-06).
+        shared_rows: series logged together share rows (:mod:`recording.series`: the rotors, the chemical
+            reading with its log10); False: an entity each, as before 2026-12-06 (``RecorderBase``).
 
     Use as a context manager, or call :meth:`close` at the end.
     """
@@ -114,9 +117,9 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
                  c_range_mg_m3: tuple[float, float] = (1e-2, 1e2),
                  arrow_scale_s: float = 2.0, recording_id: str | None = None, estimate_label: str = "estimate",
                  autopilot_label: str = "autopilot", png_images: bool = True,
-                 footer: bool = True) -> None:  # fmt: skip
+                 footer: bool = True, shared_rows: bool = True) -> None:  # fmt: skip
         super().__init__(path, application_id, series_flush_s=series_flush_s, recording_id=recording_id,
-                         defer_static=not live_layout, footer=footer)  # fmt: skip
+                         defer_static=not live_layout, footer=footer, shared_rows=shared_rows)  # fmt: skip
         self.trail_min_step_m = float(trail_min_step_m)
         self.c_range_mg_m3 = (float(c_range_mg_m3[0]), float(c_range_mg_m3[1]))
         self.arrow_scale_s = float(arrow_scale_s)
@@ -157,12 +160,10 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
             self.log_static(f"wind/{q}/raw", rr.SeriesPoints(names="raw", colors=[C_RAW], marker_sizes=1.0))
         for q in ("speed", "direction"):
             self._style(f"wind/{q}/autopilot", self.autopilot_label, C_AUTOPILOT, 1.5)
-        self._style("chem/value", "reading", C_TRUTH, 1.5)
-        self._style("chem/threshold", "threshold", C_THRESH, 1.0)
         self._style("chem/log10", "reading", C_TRUTH, 1.5)
         self._style("chem/threshold_log10", "detection threshold", C_THRESH, 1.5)
-        for i, c in enumerate(C_ROTORS, start=1):
-            self._style(f"rotors/{i}", f"rotor {i}", c, 1.5)
+        for entity, style in row_styles(self.shared_rows):  # the rotors; chem/value rides in chem/log10's rows
+            self.log_static(entity, style)
         for kind, (name, c) in _MARKERS.items():
             self.log_static(f"markers/{kind}", rr.SeriesLines(names=name, colors=[c], widths=1.5,
                                                               aggregation_policy="Off"))  # fmt: skip
@@ -257,8 +258,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         v = float(value_mg_m3)
         if not math.isfinite(v):
             return
-        self._push("chem/value", t, v)
-        self._push("chem/log10", t, math.log10(max(v, self.c_range_mg_m3[0])))
+        self._push_scalars("chem/log10", t, [math.log10(max(v, self.c_range_mg_m3[0]))], {CARRIED["chem/value"][1]: v})
         thr = self.chem_threshold
         if v > 0.0 and (thr is None or v >= thr):
             self._hit(v)
@@ -267,8 +267,7 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
     def rotors(self, t: float, rad_s_4: VecLike) -> None:
         """Rotor speeds [rad/s], rotors 1-4 in the vehicle file's order."""
         t = float(t)
-        for i in range(4):
-            self._push(f"rotors/{i + 1}", t, rad_s_4[i])
+        self._push_scalars("rotors", t, [rad_s_4[i] for i in range(4)])
         self._maybe_flush(t)
 
     def scalar(self, t: float, name: str, value: float) -> None:
@@ -364,8 +363,8 @@ class RunRecorder(EventsMixin, UrbanSceneMixin, FlightPlotsMixin):
         thr = self.chem_threshold
         if thr is not None and thr > 0 and self.has_series("chem/value"):
             for t in (self.t_first, self.t_last):
-                self._push("chem/threshold", t, thr)
-                self._push("chem/threshold_log10", t, math.log10(max(thr, self.c_range_mg_m3[0])))
+                self._push_scalars("chem/threshold_log10", t, [math.log10(max(thr, self.c_range_mg_m3[0]))],
+                                   {CARRIED["chem/threshold"][1]: thr})  # fmt: skip
             self.flush_series()
         lay = self._layout()
         lay.markers = self._send_markers()

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
+from recording.series import CARRIED_ARCHETYPE, carried_by, row_series
 from recording.style import TIMELINE
 
 #: Scalar values kept per series for fitting the plot ranges (thinned by 2 beyond this).
@@ -34,8 +35,9 @@ SERIES_STYLES = frozenset({"SeriesLines", "SeriesPoints", "StateConfiguration"})
 class ColumnBuffer:
     """Rows of one entity waiting to be sent as columns: times [s] and per-field values.
 
-    ``width`` > 1 means every row holds that many instances (e.g. the lower and upper edge of a
-    band); the columns are then partitioned so each row stays one batch of ``width`` values.
+    ``width`` > 1 means every row holds that many instances (e.g. the four rotor speeds); the columns
+    are then partitioned so each row stays one batch of ``width`` values. A field named like a
+    column (``Chem:mg_m3``) of a scalar entity is a series carried in its rows (:mod:`recording.series`).
     ``convert`` maps a field to a function applied to its whole column (a float array) when it is
     sent: what a row stores (a concentration) becomes what is drawn (a colour) once per batch,
     not once per row.
@@ -151,12 +153,15 @@ class RecorderBase:
             the schemas uncompressed) and the viewer reads a local file whole anyway: a batch trial
             leaves it out (``save(write_footer=False)``; rerun warns once per file, and ``rerun rrd
             optimize`` adds it back). The chunks are the same either way.
+        shared_rows: series logged together share rows (:mod:`recording.series`; a row costs ~14 bytes
+            besides its values); False: every series an entity of its own (the layout before 2026-12-06).
 
     Not thread-safe: one stream with its own current time; use it from one thread or one asyncio loop.
     """
 
     def __init__(self, path: Path | str, application_id: str = "windseek", *, series_flush_s: float = 0.5,
-                 recording_id: str | None = None, defer_static: bool = False, footer: bool = True) -> None:  # fmt: skip
+                 recording_id: str | None = None, defer_static: bool = False, footer: bool = True,
+                 shared_rows: bool = True) -> None:  # fmt: skip
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.series_flush_s = float(series_flush_s)
@@ -181,6 +186,8 @@ class RecorderBase:
         self.defer_static = bool(defer_static)
         self._static: dict[str, dict[str, Any]] = {}  # entity -> archetype name -> the latest one
         self._temporal: set[str] = set()  # entities with rows on the time line
+        self._grouped: set[str] = set()  # series with rows in an entity of several (recording.series)
+        self.shared_rows = bool(shared_rows)
 
     # ------------------------------------------------------------------ time
     def _seen(self, t: float) -> None:
@@ -276,6 +283,44 @@ class RecorderBase:
             self.flush_series()
             self._t_flush = t
 
+    def _push_scalars(self, entity: str, t: float, values: list[float],
+                      carried: dict[str, float] | None = None) -> None:  # fmt: skip
+        """Buffer one row of a scalar entity that holds several series (:mod:`recording.series`): its
+        ``Scalars`` instances (a value that is not finite is sent as NaN: a gap) and the components it
+        carries (column name -> value; every row of an entity gives the same ones)."""
+        if not self.shared_rows:  # each series its own entity
+            for name, v in zip(row_series(entity), values, strict=True):
+                self._push(name, t, v)
+            for comp, v in (carried or {}).items():
+                self._push(carried_by(entity)[comp], t, v)
+            return
+        buf = self._series.get(entity)
+        if buf is None:
+            buf = self._series[entity] = ColumnBuffer(rr.Scalars, len(values))
+            self._grouped.update(row_series(entity), carried_by(entity).values())
+        t = float(t)
+        self._seen(t)
+        buf.t.append(t)
+        buf.fields.setdefault("scalars", []).append([v if math.isfinite(v) else math.nan for v in map(float, values)])
+        for comp, v in (carried or {}).items():
+            buf.fields.setdefault(comp, []).append(float(v))
+
+    def _scalar_columns(self, entity: str, buf: ColumnBuffer, t: np.ndarray) -> list[Any]:
+        """The columns of a scalar entity's buffered rows; the values kept per series for the range fit."""
+        v = np.asarray(buf.fields["scalars"], dtype=float).reshape(len(t), buf.width)
+        cols = list(rr.Scalars.columns(scalars=v.ravel()).partition([buf.width] * len(t)) if buf.width > 1 else
+                    rr.Scalars.columns(scalars=v[:, 0]))  # fmt: skip
+        for k, name in enumerate(row_series(entity)):
+            self._values.setdefault(name, SeriesValues()).add(t, v[:, k])
+        carried = carried_by(entity)
+        extra = {comp: buf.column(comp) for comp in buf.fields if comp in carried}
+        for comp, col in extra.items():
+            self._values.setdefault(carried[comp], SeriesValues()).add(t, col)
+        if extra:
+            cols += rr.DynamicArchetype.columns(archetype=CARRIED_ARCHETYPE,
+                                                components={c.split(":", 1)[1]: col for c, col in extra.items()})
+        return cols
+
     def flush_series(self) -> None:
         """Send the buffered rows now (done automatically every ``series_flush_s`` of vehicle time):
         one ``send_columns`` per entity for all its rows since the last flush."""
@@ -283,25 +328,26 @@ class RecorderBase:
             if not buf.t:
                 continue
             t = np.asarray(buf.t)
-            cols = {name: buf.column(name) for name in buf.fields}
-            if buf.width == 1:
-                columns = buf.archetype.columns(**cols)
-                if buf.archetype is rr.Scalars:
-                    self._values.setdefault(entity, SeriesValues()).add(t, cols["scalars"])
+            if buf.archetype is rr.Scalars:
+                columns = self._scalar_columns(entity, buf, t)
             else:
-                flat = {name: v.reshape(-1, *v.shape[2:]) for name, v in cols.items()}
-                columns = buf.archetype.columns(**flat).partition([buf.width] * len(t))
+                cols = {name: buf.column(name) for name in buf.fields}
+                flat = {name: v.reshape(-1, *v.shape[2:]) for name, v in cols.items()} if buf.width > 1 else cols
+                columns = buf.archetype.columns(**flat)
+                if buf.width > 1:
+                    columns = columns.partition([buf.width] * len(t))
             self.send_columns(entity, t, columns)
             buf.clear()
 
     def values(self, entity: str) -> tuple[np.ndarray, np.ndarray]:
-        """The (t [s], value) pairs of a scalar series sent so far (thinned beyond ``VALUES_KEEP``)."""
+        """The (t [s], value) pairs of a scalar series sent so far, by series name (thinned beyond
+        ``VALUES_KEEP``)."""
         s = self._values.get(entity)
         return (s.t, s.v) if s is not None else (np.zeros(0), np.zeros(0))
 
     def has_series(self, entity: str) -> bool:
-        """Whether any row of this entity was sent or is buffered."""
-        return entity in self._series
+        """Whether any row of this entity (or series, :mod:`recording.series`) was sent or is buffered."""
+        return entity in self._series or entity in self._grouped
 
     def rerun_cpu_s(self) -> float:
         """CPU seconds rerun's threads of this recording used so far (0 where /proc is missing)."""

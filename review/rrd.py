@@ -11,8 +11,10 @@
                                           estimate samples NOT trusted (first seconds of a segment,
                                           near the ground: :mod:`review.trust`), kept out of the
                                           wind plots so that a take-off transient is not read as wind
-    chem/value                            chemical reading, mg/m^3
-    rotors/{1..4}                         rotor speeds, rad/s (measured, or implied)
+    chem/log10                            chemical reading, log10 mg/m^3; the reading in mg/m^3 in the same
+                                          rows (Chem:mg_m3, the series chem/value: recording.series)
+    rotors                                rotor speeds, rad/s (measured, or implied), 4 values a row (the
+                                          series rotors/1 .. rotors/4)
     flight/..., map/gps                   altitude, velocity, attitude, battery, GPS and the GPS track
                                           (:mod:`review.rrd_flight`); the layout opens on them
     log/events                            mode, arming and autopilot messages

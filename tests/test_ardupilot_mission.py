@@ -69,7 +69,7 @@ def _check_recording(log: RrdLog, s: dict) -> None:
     assert len(t_truth) > 100 and len(t_est) > 100 and len(t_ap) > 100, (len(t_truth), len(t_est), len(t_ap))
     assert log.column("wind/east/autopilot", "SeriesLines:names")[1][-1] in ("ArduCopter EKF3 E", ["ArduCopter EKF3 E"])
     for e in ("wind/speed/autopilot", "wind/direction/autopilot", "wind/east/band", "world/vehicle", "chem/value"):
-        assert e in log.entity_paths(), e
+        assert e in log.entity_paths() + log.series(), e
     # ArduCopter's estimate as the exit summary scored it: the same messages, the same last one.
     last = [log.scalars(f"wind/{a}/autopilot")[1][-1] for a in ("north", "east", "down")]
     assert np.allclose(last, s["autopilot_wind"]["last_estimate_ned_m_s"], atol=1e-3), last

@@ -153,7 +153,7 @@ def test_demo_runs_three_processes_and_writes_logs(tmp_path: Path) -> None:
     from recording.read import RrdLog
 
     log = RrdLog(rrd)
-    paths = set(log.entity_paths())
+    paths = set(log.entity_paths()) | set(log.series())  # chem/value, chem/threshold: in chem/log10's rows
     for e in ("world/vehicle", "world/trail", "world/wind/estimate", "wind/north/estimate", "wind/north/band",
               "chem/value", "chem/threshold", "world/sources/true", "world/geofence", "log/mission",
               "map/setpoint", "world/setpoint"):  # fmt: skip  # the last two: the mission's recording, merged

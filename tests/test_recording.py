@@ -37,7 +37,7 @@ def sim_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Simulation, RrdLo
 
 def test_sim_recording_has_expected_entities_on_one_timeline(sim_run: tuple[Simulation, RrdLog]) -> None:
     _, log = sim_run
-    temporal = set(log.temporal_entity_paths())
+    temporal = set(log.temporal_entity_paths()) | set(log.series())  # rotors/1 and chem/value share rows
     expected = {
         "world/vehicle", "world/trail", "world/wind/truth", "world/plume/curtain",
         "map/vehicle", "map/path", "map/plume", "map/wind/truth", "phases/mission", "phases/mode",

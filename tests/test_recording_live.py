@@ -183,7 +183,7 @@ def test_demo_rewrite_keeps_the_data_and_carries_the_printed_summary(flight: tup
     assert doc is not None and "path 41.0 m searched" in doc and "wall time: 12 s at speed 5" in doc
     # Nothing else changed: the same entities and rows, the same layout.
     assert after.entity_paths() == before.entity_paths()
-    for e, c in (("wind/north/estimate", "Scalars:scalars"), ("chem/value", "Scalars:scalars"),
+    for e, c in (("wind/north/estimate", "Scalars:scalars"), ("chem/log10", "Chem:mg_m3"),
                  ("markers/phase", "Scalars:scalars"), ("world/vehicle", "Transform3D:translation")):
         assert len(after.column(e, c)[0]) == len(before.column(e, c)[0]) > 0, e
     assert after.blueprint_count == 1 and after.blueprint_time_ranges() == ranges and len(ranges) == 9

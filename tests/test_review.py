@@ -199,7 +199,7 @@ def test_project_tlog_to_rrd(tlogs: dict[str, Path], capsys: pytest.CaptureFixtu
     assert abs(s["wind_mean_ned_ms"][0] - WIND[0]) < 0.7 and abs(s["wind_mean_ned_ms"][1] - WIND[1]) < 0.7
 
     log = RrdLog(out)
-    paths = log.entity_paths()
+    paths = log.entity_paths() + log.series()  # rotors/1 and chem/value: series sharing rows (recording.series)
     for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/truth", "wind/east/band",
               "chem/value", "rotors/1", "log/events", "log/review"):  # fmt: skip
         assert e in paths, (e, paths)
@@ -225,7 +225,7 @@ def test_tlog_without_imu_and_esc_still_writes_trajectory(tlogs: dict[str, Path]
     assert any(m.startswith("no IMU") and "wind not estimated" in m for m in s["missing"]), s["missing"]
     assert any(m.startswith("no ESC telemetry") for m in s["missing"]), s["missing"]
     log = RrdLog(res.out)
-    paths = log.temporal_entity_paths()
+    paths = log.temporal_entity_paths() + log.series()
     assert "world/vehicle" in paths and "world/trail" in paths and "chem/value" in paths
     assert "wind/north/estimate" not in paths and "wind/north/truth" in paths
     t, p = log.vectors("world/vehicle", "Transform3D:translation")
@@ -325,7 +325,7 @@ def test_ulog_to_rrd(tmp_path: Path) -> None:
     assert s["diff_vs_autopilot_ms"]["horizontal"] < 1.2, s
     assert s["rmse_vs_truth_ms"] is None
     log = RrdLog(res.out)
-    paths = log.entity_paths()
+    paths = log.entity_paths() + log.series()
     for e in ("world/vehicle", "world/trail", "wind/north/estimate", "wind/north/autopilot", "rotors/4", "log/events"):
         assert e in paths, (e, paths)
     _, w4 = log.scalars("rotors/4")

@@ -60,7 +60,7 @@ def test_never_armed_bench_log_is_not_airborne(reviews: dict[str, ReviewResult])
     assert s["wind_figure_reason"].startswith("not airborne"), s["wind_figure_reason"]
     assert any("never armed" in n for n in s["notes"])
     assert s["duration_s"] > 60.0 and s["autopilot"] == "PX4 (fd483321)"
-    paths = RrdLog(r.out).temporal_entity_paths()
+    paths = RrdLog(r.out).temporal_entity_paths() + RrdLog(r.out).series()
     assert "rotors/1" in paths and not any(p.startswith(("wind/", "extra/")) for p in paths), paths
     assert any("xy_valid = 0" in n for n in s["notes"])  # a bench: no horizontal fix
     assert "wind figure: none (not airborne" in format_summary(s)
