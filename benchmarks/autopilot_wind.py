@@ -280,8 +280,8 @@ def main() -> int:
     ap.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot")
     ap.add_argument("--compass", action=argparse.BooleanOptionalAction, default=True,
                     help="the estimator's compass check of the autopilot's heading (estimator/compass.py)")
-    ap.add_argument("--px4-scaled-imu-hz", type=float, default=10.0,
-                    help="the estimator's rate for PX4's SCALED_IMU (100: enough to replay it as the IMU input)")
+    ap.add_argument("--px4-scaled-imu-hz", type=float, default=100.0,
+                    help="the estimator's rate for PX4's SCALED_IMU (its IMU input on PX4)")
     ap.add_argument("--rrd", action="store_true", help="also write each flight's Rerun recording (windseek.rrd in "
                     "its --keep directory): the truth, windseek's UKF and the autopilot's own estimate")
     args = ap.parse_args()

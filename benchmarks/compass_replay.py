@@ -2,9 +2,10 @@
 
 ``benchmarks/autopilot_wind.py --keep DIR`` leaves, per flight, the messages ``windseek estimator`` received
 (``estimator.tlog``) and windseek's recording with the truth (``windseek.rrd``, with ``--rrd``). This replays
-each log through :class:`estimator.live.LiveCore` three or four times (:func:`VARIANTS`: neither the compass
+each log through :class:`estimator.live.LiveCore` three to five times (:func:`VARIANTS`: neither the compass
 check of ``estimator/compass.py`` nor the autopilot's own heading sigma, the check alone, both, and on PX4
-flights whose log holds the CAL_MAG parameters the check on the raw field), so all see the very
+flights whose log holds SCALED_IMU and the CAL_MAG parameters, SCALED_IMU as the input without and with the
+check on its raw field), so all see the very
 same samples, and scores each against the truth: RMSE of 1-s means of the horizontal wind (the issue's
 figure), the 95 % coverage of the stated horizontal uncertainty, and the heading error of the autopilot's
 published attitude against windseek's true one.
@@ -48,20 +49,19 @@ CHI2_95_2DOF = 5.991
 
 
 def VARIANTS(sigma_deg: float) -> dict[str, CompassConfig]:  # noqa: N802 - a table
-    """before: neither the check nor the autopilot's heading sigma; compass: the check alone; both; raw: the
-    check on PX4's SCALED_IMU field calibrated with the CAL_MAG parameters in the log (flights whose estimator
-    read them: ``windseek/estimator_px4_mag.py``), the compass's sigma alone."""
+    """before: neither the check nor the autopilot's heading sigma; compass: the check alone; both; and on PX4
+    flights whose log holds SCALED_IMU and the CAL_MAG parameters (``windseek/estimator_px4_mag.py``), the
+    two of :data:`SCALED_IMU_INPUT`."""
     return {"before": CompassConfig(enabled=False, autopilot_sigma=False),
             "compass": CompassConfig(sigma_deg=sigma_deg, autopilot_sigma=False),
             "both": CompassConfig(sigma_deg=sigma_deg),
-            "raw": CompassConfig(sigma_deg=sigma_deg),
             "sc-before": CompassConfig(enabled=False, autopilot_sigma=False),
             "sc-raw": CompassConfig(sigma_deg=sigma_deg)}  # fmt: skip
 
 
-#: Variants that need PX4's calibration from the log; those on SCALED_IMU's accelerometer and gyro ("sc-":
-#: the IMU without EKF2's bias estimates, HIGHRES_IMU left out) need it streamed fast enough to be the input.
-RAW_FIELD = ("raw", "sc-raw")
+#: Variants on PX4's SCALED_IMU as the IMU input (no EKF2 biases taken out; it must stream about as fast as
+#: HIGHRES_IMU): "sc-before" with the published heading, "sc-raw" as ``windseek estimator`` runs on PX4 today
+#: (``LiveCore.use_px4_raw``: the compass check on the raw field calibrated with the log's CAL_MAG parameters).
 SCALED_IMU_INPUT = ("sc-before", "sc-raw")
 
 
@@ -115,13 +115,16 @@ def lift_off_s(t: np.ndarray, alt: np.ndarray) -> float:
     return float(t[above[0]])
 
 
-def replay(msgs: list[Any], compass: CompassConfig, imu_average: int,
+def replay(msgs: list[Any], compass: CompassConfig, imu_average: int, scaled_imu: bool = False,
            cal: Px4MagCalibration | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """(autopilot times s, wind NED, covariance) every 0.1 s of the replayed estimator's output."""
+    """(autopilot times s, wind NED, covariance) every 0.1 s of the replayed estimator's output; ``scaled_imu``:
+    SCALED_IMU as the IMU input, with ``cal`` its raw field for the compass check."""
     core = LiveCore(LiveConfig(vehicle=load_vehicle("nasa_quad"), imu_average=imu_average, esc_component=158,
                                compass=compass))  # fmt: skip
     if cal is not None:
-        core.compass_feed.set_px4_calibration(cal)
+        core.use_px4_raw(cal)
+    elif scaled_imu:
+        core.select.switch("imu", "SCALED_IMU")
     ts, ws, cs = [], [], []
     next_t = -math.inf
     for m in msgs:
@@ -180,12 +183,9 @@ def flight(d: Path, imu_average: int, sigma_deg: float) -> dict[str, Any]:
     row: dict[str, Any] = {"flight": d.name}
     cal = px4_calibration(msgs)
     n_sc = sum(1 for m in msgs if m.get_type() == "SCALED_IMU")
-    fast_sc = n_sc > 0.5 * sum(1 for m in msgs if m.get_type() == "HIGHRES_IMU")
-    no_hr = [m for m in msgs if m.get_type() != "HIGHRES_IMU"] if fast_sc else []
-    runs = {name: replay(no_hr if name in SCALED_IMU_INPUT else msgs, cfg, imu_average,
-                         cal if name in RAW_FIELD else None)
-            for name, cfg in VARIANTS(sigma_deg).items()
-            if (name not in RAW_FIELD or cal is not None) and (name not in SCALED_IMU_INPUT or fast_sc)}  # fmt: skip
+    fast_sc = n_sc > 0.5 * sum(1 for m in msgs if m.get_type() == "HIGHRES_IMU") and cal is not None
+    runs = {name: replay(msgs, cfg, imu_average, name in SCALED_IMU_INPUT, cal if name == "sc-raw" else None)
+            for name, cfg in VARIANTS(sigma_deg).items() if name not in SCALED_IMU_INPUT or fast_sc}  # fmt: skip
     t, w, _ = runs["before"]
     sel = (t + rough > t0) & (t + rough < t1 - 3.0)
 

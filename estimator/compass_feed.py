@@ -6,9 +6,10 @@ autopilot states (PX4's ODOMETRY). Which message carries the field:
 
 - by default the chosen IMU message's (``mavlink_decode.magnetometer``: ArduPilot's RAW_IMU / SCALED_IMU
   calibrated field, PX4's HIGHRES_IMU field minus EKF2's magnetometer bias);
-- with PX4's calibration read (:meth:`CompassFeed.set_px4_calibration`, ``estimator.px4_mag``), PX4's
-  SCALED_IMU raw field calibrated here, and nothing else: the field as the compass measures it, with no
-  EKF2 bias taken out. SCALED_IMU repeats the last field with every IMU sample; a repeat is weighed once.
+- with PX4's calibration read (:meth:`CompassFeed.set_px4_calibration`, ``estimator.px4_mag``; the live core
+  then takes SCALED_IMU as its IMU input too, ``LiveCore.use_px4_raw``), PX4's SCALED_IMU raw field
+  calibrated here, and nothing else: the field as the compass measures it, with no EKF2 bias taken out.
+  SCALED_IMU repeats the last field with every IMU sample; a repeat is weighed once.
 
 The stated heading 1-sigma: the compass's alone when it sees the measured field (ArduPilot's, or PX4's
 SCALED_IMU calibrated here); the larger of the compass's and the autopilot's when the field has had the

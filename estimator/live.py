@@ -38,6 +38,7 @@ from estimator.ground_gate import LANDED_ON_GROUND, GroundGate, LiftOff, withhel
 from estimator.live_select import InputSelection, filter_waiting_line
 from estimator.model_fit import ModelFit
 from estimator.motor_output import OutputMap
+from estimator.px4_mag import Px4MagCalibration
 from estimator.rpm_free import MotorCommandModel
 from estimator.thrust_check import MAV_LANDED_STATE_IN_AIR
 from estimator.ukf import WindEstimator
@@ -141,6 +142,14 @@ class LiveCore:
         self.restarts += 1
         self.counters[f"restart:{why}"] += 1
 
+    def use_px4_raw(self, cal: Px4MagCalibration) -> None:
+        """PX4's SCALED_IMU as the IMU input and the compass (``estimator.compass_feed``): its accelerometer and gyro
+        without EKF2's bias estimates, which make HIGHRES_IMU agree with EKF2's heading however wrong it is."""
+        self.note(self.compass_feed.set_px4_calibration(cal))
+        if self.select.switch("imu", "SCALED_IMU") and any(self.est.accepted.values()):
+            self._restart("imu-input")  # another IMU stream (other biases, another clock field): a fresh filter
+        self.note("inputs: IMU now PX4's SCALED_IMU (no EKF2 biases taken out; the heading from its raw compass)")
+
     def note(self, line: str) -> None:
         """Queue a one-line event for :meth:`take_notes`."""
         self._notes.append(line)
@@ -206,8 +215,6 @@ class LiveCore:
             self._say(self.compass_feed.locate(msg))
         elif mtype == "ODOMETRY":
             self.compass_feed.autopilot_yaw_sigma = dec.yaw_sigma(msg)
-        elif mtype == "SCALED_IMU" and self.compass_feed.px4 is not None:  # PX4's raw field, whatever the IMU input
-            self._say(self.compass_feed.magnetometer(mtype, msg, t if t is not None else self.t, self.autopilot_kind))
         group = dec.GROUP_OF.get(mtype)
         if group is None:
             return

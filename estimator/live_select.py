@@ -36,6 +36,7 @@ class InputSelection:
         self._first: dict[str, float] = {}
         self._last: dict[str, float] = {}
         self._n: Counter[str] = Counter()
+        self._forced: dict[str, str] = {}  # group -> message type the owner switched it to (switch())
 
     def observe(self, mtype: str, t: float | None) -> None:
         """Count an input message (``t``: its boot-clock time stamp, s, or None)."""
@@ -59,6 +60,7 @@ class InputSelection:
             name = next((n for n in names if self.seen[n]), None)
             if name is not None:
                 self.chosen[group] = name
+        self.chosen.update(self._forced)
         self.selected = True
 
     def claim(self, group: str, mtype: str) -> bool:
@@ -67,6 +69,16 @@ class InputSelection:
             return False
         self.chosen[group] = mtype
         return True
+
+    def switch(self, group: str, mtype: str) -> bool:
+        """Feed ``group`` from ``mtype`` from now on, whatever the preference (the owner knows better; before the
+        selection it is kept for it); True if an input in use changed."""
+        self._forced[group] = mtype
+        if not self.selected:
+            return False
+        changed = self.chosen.get(group) != mtype
+        self.chosen[group] = mtype
+        return changed
 
     def rate_hz(self, mtype: str) -> float | None:
         """Measured rate of a stamped message type on the autopilot's clock, Hz (None: unknown)."""

@@ -44,7 +44,8 @@ def px4_stream(flight: Flight, cal: px4_mag.Px4MagCalibration, err_deg: float,
     """PX4-like messages: the published heading ``err_deg`` off; HIGHRES_IMU's field that of the Earth's field
     turned by ``hidden_deg`` about down (the part an EKF2 bias estimate hides: the field agrees with the wrong
     heading that much); and
-    after every fifth HIGHRES_IMU, a SCALED_IMU with the raw field (mgauss) that ``cal`` calibrates to the truth."""
+    after every fifth HIGHRES_IMU, a SCALED_IMU with its accelerometer and gyro (mG, mrad/s) and the raw field
+    (mgauss) that ``cal`` calibrates to the truth."""
     h = -math.radians(hidden_deg)  # the field turned the way the published heading is
     hidden_field = np.array([[math.cos(h), -math.sin(h), 0.0], [math.sin(h), math.cos(h), 0.0], [0, 0, 1.0]]) @ FIELD
     truth_t = flight.truth[:, 0]
@@ -60,7 +61,9 @@ def px4_stream(flight: Flight, cal: px4_mag.Px4MagCalibration, err_deg: float,
             if n % 5 == 0:
                 raw = np.rint(raw_field(cal, true_b) * 1000.0).astype(int)
                 msgs.append((t, m))
-                m = mavlink.MAVLink_scaled_imu_message(int(round(t * 1e3)), 0, 0, -1000, 0, 0, 0, *raw, 2000)
+                mg = [int(round(a / 9.80665 * 1000.0)) for a in (m.xacc, m.yacc, m.zacc)]
+                mr = [int(round(g * 1000.0)) for g in (m.xgyro, m.ygyro, m.zgyro)]
+                m = mavlink.MAVLink_scaled_imu_message(int(round(t * 1e3)), *mg, *mr, *raw, 2000)
         msgs.append((t, m))
     return msgs
 

@@ -6,7 +6,7 @@ published heading 12 deg off, a HIGHRES_IMU field that hides 8 deg of it (as EKF
 does) and a raw SCALED_IMU field from an external compass turned 90 deg with hard- and soft-iron errors. It
 answers PARAM_REQUEST_READ as PX4 does (INT32 values bytewise in the float field), and drops the first request
 of three names, which the estimator must ask again. The estimator must say which calibration it took, ask for
-SCALED_IMU and find the whole 12 deg.
+SCALED_IMU, take it as its IMU input and find the whole 12 deg.
 """
 
 from __future__ import annotations
@@ -99,7 +99,8 @@ def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field() -> Non
            "+0.310 G; external" in err, err
     assert asked.count("CAL_MAG0_ID") == 2 and asked.count("CAL_MAG0_XODIAG") == 2  # asked again when unanswered
     assert "CAL_MAG1_XOFF" not in asked  # only the enabled slot's fields
-    assert (26, 1e5) in intervals  # SCALED_IMU at 10 Hz
+    assert (26, 1e4) in intervals  # SCALED_IMU at 100 Hz: the IMU input now
+    assert "inputs: IMU now PX4's SCALED_IMU" in err
     c = json.loads(out)["compass"]
     assert c["field"] == "px4-scaled-imu-calibrated"
     assert abs(c["offset_deg"] + 12.0) < 0.7, c  # all of the heading error (HIGHRES_IMU's field shows 4 deg)

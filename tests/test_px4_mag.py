@@ -81,7 +81,7 @@ def flight() -> Flight:
 def _offset_and_rmse(flight: Flight, cal: px4_mag.Px4MagCalibration | None, msgs: list) -> tuple[float, LiveCore]:
     core = LiveCore(LiveConfig(vehicle=load_vehicle(), compass=CompassConfig()))
     if cal is not None:
-        core.compass_feed.set_px4_calibration(cal)
+        core.use_px4_raw(cal)
     for m in over_the_wire([(1, 1, msgs)]):
         core.handle(m)
     return math.degrees(core.compass.offset_rad), core

@@ -125,11 +125,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--compass-sigma-deg", type=float, default=1.0, metavar="DEG",
                    help="stated 1-sigma of the compass heading (calibration, declination, interference)")
     p.add_argument("--px4-raw-compass", action=argparse.BooleanOptionalAction, default=True,
-                   help="on PX4: read its CAL_MAG parameters and check the heading against SCALED_IMU's raw field "
-                   "calibrated with them, not HIGHRES_IMU's, which has EKF2's magnetometer bias taken out "
-                   "(windseek/estimator_px4_mag.py; default on)")
-    p.add_argument("--px4-scaled-imu-hz", type=float, default=10.0, metavar="HZ",
-                   help="rate asked for PX4's SCALED_IMU when its raw field is taken (default 10)")
+                   help="on PX4: read its CAL_MAG parameters and take SCALED_IMU as the IMU (no EKF2 biases taken out) "
+                   "with its raw field calibrated with them for the compass check, not HIGHRES_IMU, whose biases make "
+                   "it agree with EKF2's heading (windseek/estimator_px4_mag.py; default on)")
+    p.add_argument("--px4-scaled-imu-hz", type=float, default=100.0, metavar="HZ",
+                   help="rate asked for PX4's SCALED_IMU when it is taken (default 100)")
     p.add_argument("--tlog", default=None, metavar="PATH",
                    help="write every message received to this telemetry log (replay: benchmarks/compass_replay.py)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
