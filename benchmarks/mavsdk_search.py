@@ -235,8 +235,11 @@ def main() -> int:
     args = ap.parse_args()
     if not (math.isfinite(args.speed) and args.speed > 0):
         ap.error(f"--speed {args.speed}: must be > 0")
-    if args.params and not Path(args.params).is_file():
-        ap.error(f"--params {args.params}: no such strategy file")
+    if args.params:  # the processes run in the repository: a path from here, else from there
+        f = next((f for f in (Path(args.params), REPO / args.params) if f.is_file()), None)
+        if f is None:
+            ap.error(f"--params {args.params}: no such strategy file")
+        args.params = str(f.resolve())
     seeds = _seeds(args.seeds)
     root = Path(args.from_dir or args.keep or tempfile.mkdtemp(prefix="mavsdk_search_"))
     print(f"{args.strategy} ({args.params or 'defaults'}) on {args.scenario} through the MAVSDK runner (windseek demo "
