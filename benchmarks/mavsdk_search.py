@@ -55,20 +55,49 @@ def fly(seed: int, args: argparse.Namespace, out: Path) -> dict[str, Any]:
             *(["--params", args.params] if args.params else []), *(["--no-rrd"] if args.no_rrd else [])]  # fmt: skip
     load = calm(args.max_load, args.load_wait)
     wall0 = time.monotonic()
-    with open(out / "demo.log", "w") as log:
-        try:
-            r = subprocess.run(_cli(*argv), cwd=REPO, stdout=subprocess.PIPE, stderr=log, text=True,
-                               timeout=args.wall_limit + 180.0)  # fmt: skip
-            rc, stdout = r.returncode, r.stdout
-        except subprocess.TimeoutExpired as e:  # the demo's own --wall-limit normally ends it first
-            rc, stdout = None, e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
-    (out / "demo.json").write_text(stdout)
+    drops = {"estimator": 0, "mission": 0}
+    with open(out / "demo.log", "w") as log, open(out / "demo.json", "w") as stdout:
+        demo = subprocess.Popen(_cli(*argv), cwd=REPO, stdout=stdout, stderr=log)
+        end = wall0 + args.wall_limit + 180.0  # the demo's own --wall-limit normally ends it first
+        while demo.poll() is None and time.monotonic() < end:
+            time.sleep(1.0)
+            for who, n in udp_drops(out).items():
+                drops[who] = max(drops[who], n)
+        if demo.poll() is None:
+            demo.kill()
+        rc = demo.wait(10.0)
     summary = _json(out / "demo.json")
     (out / "mission.json").write_text(json.dumps(summary.get("mission") or {}))
     (out / "windseek.json").write_text(json.dumps(summary.get("truth") or {}))
-    meta = {"returncode": rc, "load": round(load, 2), "wall_s": round(time.monotonic() - wall0, 1)}
+    meta = {"returncode": rc, "load": round(load, 2), "wall_s": round(time.monotonic() - wall0, 1), "udp_drops": drops}
     (out / "run.json").write_text(json.dumps(meta))
     return row(seed, args.strategy, out)
+
+
+#: The line of each process's log that names its UDP port (127.0.0.1:PORT).
+PORT_LINES = {"estimator": "windseek estimator: connecting on udpin://127.0.0.1:",
+              "mission": "mission: connected to system 1 on udpin://127.0.0.1:"}  # fmt: skip
+
+
+def udp_drops(out: Path) -> dict[str, int]:
+    """Datagrams the kernel dropped so far at the estimator's and the mission's sockets (their receive buffers
+    full: the process did not read fast enough), from ``/proc/net/udp`` (Linux; {} elsewhere)."""
+    ports = {}
+    for who, prefix in PORT_LINES.items():
+        for log in out.glob(f"*.{who}.log"):
+            with open(log, errors="replace") as f:
+                ports.update({int(ln[len(prefix):].split()[0]): who for ln in f if ln.startswith(prefix)})
+    try:
+        rows = Path("/proc/net/udp").read_text().splitlines()[1:]
+    except OSError:
+        return {}
+    got: dict[str, int] = {}
+    for ln in rows:
+        col = ln.split()
+        port = int(col[1].split(":")[1], 16)
+        if port in ports:
+            got[ports[port]] = got.get(ports[port], 0) + int(col[-1])
+    return got
 
 
 def calm(max_load: float | None, wait_s: float) -> float:
@@ -92,6 +121,7 @@ def row(seed: int, strategy: str, out: Path) -> dict[str, Any]:
              confidence=m.get("confidence") if declared else None, credible_radius_m=cred,
              held=None if not declared or cred is None else bool(err <= cred), replanned=m.get("clamped_setpoints"),
              returncode=run.get("returncode"), load=run.get("load"), wall_s=run.get("wall_s"),
+             udp_drops=run.get("udp_drops"),
              states=states(out))  # fmt: skip
     hover = [s for s in r["states"] if s["state"] == "solve-field"]
     r["solve_field_s"] = round(sum(s["vehicle_s"] for s in hover), 2) if hover else None
@@ -131,16 +161,18 @@ def _f(v: Any, fmt: str = ".1f") -> str:
 def print_rows(rows: list[dict[str, Any]]) -> None:
     """The per-seed table (markdown)."""
     print("| seed | found | cause | declared error m | confidence | 90 % region (m) held | time to declaration s | "
-          "path ratio | re-planned setpoints | wind RMSE N / E / D m/s | solve-field hover s (wall) | wall s | load |")
-    print("|---|---|---|---:|---:|---|---:|---:|---:|---|---|---:|---:|")
+          "path ratio | re-planned setpoints | wind RMSE N / E / D m/s | solve-field hover s (wall) | wall s | load | "
+          "UDP drops estimator / mission |")
+    print("|---|---|---|---:|---:|---|---:|---:|---:|---|---|---:|---:|---|")
     for r in rows:
         rm = r.get("rmse_ned") or [None] * 3
+        dr = r.get("udp_drops") or {}
         held = "-" if r["held"] is None else f"{'yes' if r['held'] else 'no'} ({_f(r['credible_radius_m'])})"
         print(f"| {r['seed']} | {'yes' if r['found'] else 'no'} | {r['cause']} | {_f(r['error_m'], '.2f')} | "
               f"{_f(r['confidence'], '.2f')} | {held} | {_f(r['time_s'])} | {_f(r['path_ratio'], '.2f')} | "
               f"{_f(r['replanned'], 'd')} | {' / '.join(_f(x, '.2f') for x in rm)} | "
               f"{_f(r['solve_field_s'])} ({_f(r['solve_field_wall_s'])}) | {_f(r['wall_s'], '.0f')} | "
-              f"{_f(r['load'], '.1f')} |")  # fmt: skip
+              f"{_f(r['load'], '.1f')} | {_f(dr.get('estimator'), 'd')} / {_f(dr.get('mission'), 'd')} |")  # fmt: skip
 
 
 def totals(rows: list[dict[str, Any]]) -> None:
@@ -165,6 +197,11 @@ def totals(rows: list[dict[str, Any]]) -> None:
     if n_sc:
         print(f"WIND_COV RMSE vs truth (pooled over {n_sc} airborne estimates): N {pooled[0]:.3f} E {pooled[1]:.3f} "
               f"D {pooled[2]:.3f} m/s, horizontal {math.hypot(pooled[0], pooled[1]):.3f} m/s")  # fmt: skip
+    drops = [r["udp_drops"] for r in rows if r.get("udp_drops") is not None]
+    if drops:
+        print(f"UDP datagrams the kernel dropped at the estimator's socket: {sum(d['estimator'] for d in drops)} in "
+              f"{sum(d['estimator'] > 0 for d in drops)} of {len(drops)} flights; at the mission's: "
+              f"{sum(d['mission'] for d in drops)}")  # fmt: skip
     hover = [r["solve_field_s"] for r in rows if r["solve_field_s"] is not None]
     if hover:
         print(f"solve-field hover: {len(hover)} flights, {min(hover):.1f}-{max(hover):.1f} vehicle s (median "
