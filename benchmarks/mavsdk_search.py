@@ -22,6 +22,7 @@ Usage::
     python benchmarks/mavsdk_search.py --seeds 1000-1009 --scenario paper-s4 --strategy infotaxis \\
         --params mission/strategy_files/urban.toml --speed 3 --keep DIR --inprocess
     python benchmarks/mavsdk_search.py --from DIR --seeds 1000-1009 ...   # recompute from the logs a run kept
+    python benchmarks/mavsdk_search.py --from DIR --seeds 1001 --replay-estimator   # the estimator's verdict offline
 """
 
 from __future__ import annotations
@@ -154,6 +155,34 @@ def states(out: Path) -> list[dict[str, Any]]:
             for a, b in zip(marks, marks[1:], strict=False)]  # fmt: skip
 
 
+def replay_estimator(out: Path, imu_average: int = 2) -> dict[str, Any]:
+    """The demo's estimator (``windseek estimator --imu-average N``, its ``LiveCore``) fed offline every frame
+    the SITL's tlog holds, in order: whether its model-fit verdict (a latched "model mismatch" withholds the
+    wind; the mission then aborts with ``estimator-fault``) follows from the flight itself or from the live run
+    (datagrams dropped, a late process)."""
+    from pymavlink import mavutil
+
+    from windseek import cmd_estimator
+    from wire.dialect import mavlink as mav
+
+    tlogs = sorted(out.glob("*.tlog"))
+    if not tlogs:
+        return {}
+    ap = argparse.ArgumentParser()
+    cmd_estimator.add_parser(ap.add_subparsers())
+    core = cmd_estimator.make_core(ap.parse_args(["estimator", "--connect", "udpin://127.0.0.1:1", "--imu-average",
+                                                  str(imu_average)]))  # fmt: skip
+    mavutil.mavlink = mav
+    conn = mavutil.mavlink_connection(str(tlogs[-1]))
+    while (msg := conn.recv_match()) is not None:
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != (1, 191):  # not the estimator's own WIND_COV
+            core.handle(msg)
+            core.take_notes()
+    conn.close()
+    s = core.summary()
+    return {k: s.get(k) for k in ("model_fits", "mismatch_t_s", "innovation_nis_mean", "model_note")}
+
+
 def _f(v: Any, fmt: str = ".1f") -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
 
@@ -266,6 +295,8 @@ def main() -> int:
     ap.add_argument("--no-rrd", action="store_true", help="no Rerun recording (the .tlog is kept)")
     ap.add_argument("--keep", default=None, help="keep every seed's logs under this directory")
     ap.add_argument("--from", dest="from_dir", default=None, help="do not fly: the figures from a --keep directory")
+    ap.add_argument("--replay-estimator", action="store_true", help="with --from: feed each seed's tlog to the "
+                    "estimator offline and print its model-fit verdict")  # fmt: skip
     ap.add_argument("--inprocess", action="store_true", help="also run the in-process runner on the same seeds")
     ap.add_argument("--inprocess-json", default=None, metavar="FILE", help="a saved `windseek search --json` output "
                     "to compare with (instead of running it)")  # fmt: skip
@@ -289,6 +320,9 @@ def main() -> int:
         print(json.dumps(r), flush=True)
     print_rows(rows)
     totals(rows)
+    if args.from_dir and args.replay_estimator:
+        for seed in seeds:
+            print(f"seed {seed}: the estimator replayed offline: {replay_estimator(root / f'seed{seed}')}", flush=True)
     if args.inprocess or args.inprocess_json:
         compare(rows, inprocess(args, seeds, root))
     return 0
