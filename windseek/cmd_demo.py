@@ -5,13 +5,14 @@ vehicle (each with ``sys.executable -m windseek.cli``), on free local UDP ports:
 
     windseek sitl SCENARIO --udp 127.0.0.1:E 127.0.0.1:M 127.0.0.1:O --forward --tlog .. --rrd .. --exit-summary ..
     windseek estimator --connect udpin://127.0.0.1:E          (WIND_COV back to the SITL, forwarded to M)
-    windseek mission --connect udpin://127.0.0.1:M --strategy S --wind mavlink --json
+    windseek mission --connect udpin://127.0.0.1:M --strategy S [--params FILE] --wind mavlink --json
 
 and listens itself on O (it never sends a HEARTBEAT, so it does not count as a ground station).
 It shows progress, waits for the mission to end, stops the SITL and the estimator with SIGTERM
 (they close their links and write their logs), and prints the summary: source found (declared
-within ``SUCCESS_RADIUS_M`` = 5 m of the true source, horizontally), the declared-position
-error, time, path length and the wind RMSE of the estimator's WIND_COV against the simulator's
+within the strategy's success radius of the true source, horizontally: 3 m for infotaxis, whose
+confidence is stated for 3 m, ``SUCCESS_RADIUS_M`` = 5 m for the others, as in ``windseek search``),
+the declared-position error, time, path length and the wind RMSE of the estimator's WIND_COV against the simulator's
 truth. Files, beside each other in ``--logs`` (default ``logs/``)::
 
     <UTC time>-<scenario>-<strategy>.rrd     Rerun recording (open with ``rerun FILE``)
@@ -56,6 +57,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--scenario", default="open-field", help="scenario name or .toml (default open-field)")
     p.add_argument("--strategy", default="surge-cast", help="search strategy (default surge-cast)")
+    p.add_argument("--params", default=None, metavar="FILE", help="strategy file given to the mission (TOML "
+                   "with a [strategy] table, e.g. mission/strategy_files/urban.toml; default: the strategy's defaults)")
     p.add_argument("--speed", type=float, default=5.0,
                    help="simulation seconds per wall second (default 5: a search in well under a minute)")
     p.add_argument("--seed", type=int, default=None, help="simulation and strategy seed (default: the scenario's)")
@@ -83,6 +86,7 @@ class _Plan:
     scenario: str
     name: str
     strategy: str
+    params: str | None  # the strategy file the mission flies with (None: the strategy's defaults)
     seed: int
     speed: float
     time_limit: float
@@ -108,12 +112,13 @@ def _plan(args: argparse.Namespace) -> _Plan:
     if not (math.isfinite(args.speed) and args.speed > 0):
         raise ValueError(f"--speed {args.speed}: must be > 0")
     sc = load_scenario(args.scenario)  # fails early, with the scenario's own message
+    params = load_params(args.strategy, args.params)  # a bad strategy file: one line naming it, before any log
     limits = SafetyLimits()
     logs = Path(args.logs)
     logs.mkdir(parents=True, exist_ok=True)
     base = logs / f"{datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')}-{sc.name}-{args.strategy}"
     return _Plan(
-        scenario=args.scenario, name=sc.name, strategy=args.strategy,
+        scenario=args.scenario, name=sc.name, strategy=args.strategy, params=args.params,
         seed=sc.seed if args.seed is None else int(args.seed),
         speed=float(args.speed), time_limit=limits.time_limit_s if args.time_limit is None else float(args.time_limit),
         imu_average=int(args.imu_average), wall_limit=float(args.wall_limit), base=base,
@@ -123,7 +128,7 @@ def _plan(args: argparse.Namespace) -> _Plan:
         fence=",".join(f"{h + v:g}" for h, v in zip((*sc.start.position_ned, *sc.start.position_ned),
                                                      (*limits.box_min_ned, *limits.box_max_ned), strict=True)),
         buildings=sc.urban is not None and bool(sc.urban.buildings),
-        search_altitude_m=min(max(load_params(args.strategy).altitude_m, limits.min_altitude_m),
+        search_altitude_m=min(max(params.altitude_m, limits.min_altitude_m),
                               limits.max_altitude_m),
         mission_rrd=None if args.no_rrd else Path(f"{base}.mission.rrd"),
     )  # fmt: skip
@@ -143,7 +148,8 @@ def mission_argv(pl: _Plan, port: int) -> list[str]:
     recording (the strategy's posterior and the setpoints, merged into the SITL's at the end) and, in a
     scenario with buildings, those buildings as exclusion zones (without them the search flies into
     the first block in its way)."""
-    return ["mission", "--connect", f"udpin://127.0.0.1:{port}", "--strategy", pl.strategy, "--wind", "mavlink",
+    return ["mission", "--connect", f"udpin://127.0.0.1:{port}", "--strategy", pl.strategy,
+            *(["--params", pl.params] if pl.params is not None else []), "--wind", "mavlink",
             "--speed-hint", f"{pl.speed:g}", "--seed", str(pl.seed), "--time-limit", f"{pl.time_limit:g}", "--json",
             *(["--rrd", str(pl.mission_rrd)] if pl.mission_rrd is not None else []),
             *(["--buildings", pl.scenario] if pl.buildings else [])]  # fmt: skip
@@ -263,8 +269,8 @@ def run(args: argparse.Namespace) -> int:
 
     plan = _plan(args)
     demo = _Demo(plan, Console(stderr=True))
-    demo.note(f"windseek demo: {plan.name} / {plan.strategy} / seed {plan.seed} / speed {plan.speed:g}; "
-              f"logs {plan.base}.*")  # fmt: skip
+    demo.note(f"windseek demo: {plan.name} / {plan.strategy}{f' ({plan.params})' if plan.params else ''} / seed "
+              f"{plan.seed} / speed {plan.speed:g}; logs {plan.base}.*")  # fmt: skip
     try:
         mission, truth = demo.fly()
     except _FailedError as f:
@@ -277,6 +283,7 @@ def run(args: argparse.Namespace) -> int:
         demo.close()
     summary = make_summary(plan.name, plan.strategy, plan.seed, plan.speed, mission, truth,
                            time.monotonic() - demo.wall0, plan.files)  # fmt: skip
+    summary["params"] = plan.params
     plan.files["json"].write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     if "rrd" in plan.files:
         _finish_recording(plan, summary, demo.note)
@@ -322,22 +329,25 @@ def _read_json(path: Path) -> dict[str, Any] | None:
 def make_summary(scenario: str, strategy: str, seed: int, speed: float, mission: dict[str, Any],
                  truth: dict[str, Any], wall_s: float, files: dict[str, Path]) -> dict[str, Any]:  # fmt: skip
     """The demo's summary (JSON-ready): mission result, truth figures, found or not and why."""
+    from mission.runners.inprocess import SUCCESS_RADIUS_BY_STRATEGY
+
+    radius = SUCCESS_RADIUS_BY_STRATEGY.get(strategy, SUCCESS_RADIUS_M)
     declared = mission.get("declared_ned")
     sources = truth.get("true_sources_ned_m") or []
     err = None
     if declared and sources:
         err = min(math.hypot(declared[0] - s[0], declared[1] - s[1]) for s in sources)
     cause = mission.get("cause", "")
-    found = cause == "declared" and err is not None and err <= SUCCESS_RADIUS_M
+    found = cause == "declared" and err is not None and err <= radius
     if found:
         reason = f"declared {err:.1f} m from the true source"
     elif cause != "declared":
         reason = f"mission ended without a declaration: {cause or 'unknown'}"
     else:
-        reason = f"declared {err:.1f} m from the true source (more than {SUCCESS_RADIUS_M:g} m)"
+        reason = f"declared {err:.1f} m from the true source (more than {radius:g} m)"
     return {
         "scenario": scenario, "strategy": strategy, "seed": seed, "speed": speed,
-        "found": bool(found), "reason": reason, "cause": cause,
+        "found": bool(found), "success_radius_m": radius, "reason": reason, "cause": cause,
         "declared_ned_m": declared, "confidence": mission.get("confidence"),
         "true_sources_ned_m": sources,
         "declared_error_horizontal_m": None if err is None else round(err, 2),
