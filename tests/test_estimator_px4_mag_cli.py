@@ -20,6 +20,7 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from estimator_stream import record
 from link_support import free_port
 from px4_mag_stream import PX4_CAL, px4_params, px4_stream
@@ -33,7 +34,9 @@ SPEED = 4.0  # simulated seconds per wall second
 INT32_NAMES = {"SENS_BOARD_ROT"} | {f"CAL_MAG{i}_{f}" for i in range(4) for f in ("ID", "PRIO", "ROT")}
 
 
-def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field() -> None:
+@pytest.mark.parametrize("rates", ["missing", "never"])
+def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field(rates: str) -> None:
+    """``rates`` never: SCALED_IMU streams at 10 Hz only and may not be asked for faster, so HIGHRES_IMU stays."""
     params = px4_params(ROT=2, **PX4_CAL)
     cal = px4_mag.from_params(params)
     assert isinstance(cal, px4_mag.Px4MagCalibration)
@@ -41,7 +44,7 @@ def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field() -> Non
     port = free_port()
     est = subprocess.Popen(
         [sys.executable, "-m", "windseek.cli", "estimator", "--connect", f"udpin://127.0.0.1:{port}",
-         "--json", "--progress-every", "0", "--link-timeout", "5", "--duration", "60"],
+         "--json", "--progress-every", "0", "--link-timeout", "5", "--duration", "60", "--request-rates", rates],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(iter(est.stderr.readline, "")), daemon=True)
@@ -95,6 +98,10 @@ def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field() -> Non
         err = "".join(lines)
         sock.close()
     assert est.returncode == 0, err
+    if rates == "never":
+        assert "the field stays the IMU message's (SCALED_IMU at 10 Hz, under 100, and rates may not be asked" in err
+        assert not intervals and json.loads(out)["compass"]["field"] == "imu-message"
+        return
     assert "compass: PX4's raw field (SCALED_IMU) calibrated with CAL_MAG0 (device 197388; offsets +0.120, -0.050, " \
            "+0.310 G; external" in err, err
     assert asked.count("CAL_MAG0_ID") == 2 and asked.count("CAL_MAG0_XODIAG") == 2  # asked again when unanswered

@@ -129,3 +129,24 @@ def test_urban_strategy_bad_input_falls_back_and_says_so() -> None:
     assert any("dropped" in m for m in lines)
     assert s.post.urban is None and s.post.n_fallback >= MISMATCH_READINGS
     assert s.model_unusable and not s._sure(t + 10.0, s._center)
+
+
+def test_urban_strategy_waits_for_wind_over_the_roofs_not_at_the_search_height() -> None:
+    """On the climb to the probe height the estimated wind can fall below what gives a direction (a start in a
+    building's lee, paper-s4 seed 1001 through the MAVSDK runner): the strategy waits for it where it is going,
+    over the roofs, instead of sending the search height between two probe setpoints (the flip-flop braked the
+    climb and tripped the live estimator's innovation check)."""
+    s = Infotaxis()
+    s.set_obstacles(Obstacles([_box(60.0, 0.0, 20.0, 12.0, "block")]))
+    p = InfotaxisParams(plume_model="urban", n_particles=300, plan_particles=30, urban_probe_s=0.5)
+    s.reset(np.zeros(3), p, seed=0)
+    assert s.city is not None
+    calm = WindInfo(wind_ned=np.array([-0.2, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)  # below min_wind_m_s
+    wind = WindInfo(wind_ned=np.array([-4.0, 0.0, 0.0]), cov_ned=None, upwind_rad=0.0)
+    heights = []
+    for k, w in enumerate([wind, calm, wind, calm, calm, wind]):  # mid-climb, at 8 m
+        sp = s.update(Observation(t=0.1 * k, position_ned=np.array([0.0, 0.0, -8.0]), velocity_ned=np.zeros(3),
+                                  chem_mg_m3=0.0, detected=False, chem_new=True, wind=w))
+        heights.append((sp.state, -float(sp.position_ned[2])))
+    assert {st for st, _ in heights} == {"measure-inflow", "wait-wind"}
+    assert all(h > 8.0 for _, h in heights), heights  # always on the way up, never back to 2 m

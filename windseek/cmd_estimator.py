@@ -306,7 +306,8 @@ def _loop(conn: Any, core: LiveCore, args: argparse.Namespace, say: Any, every: 
             request_rates(conn, core, args.request_rates, say)  # after 1 s of listening: what is missing
             t_request = None
             if args.px4_raw_compass and args.compass and core.autopilot_kind == MAV_AUTOPILOT_PX4:
-                mag_setup = Px4MagSetup(core, say, rate_hz=args.px4_scaled_imu_hz)
+                mag_setup = Px4MagSetup(core, say, rate_hz=args.px4_scaled_imu_hz,
+                                        may_request=args.request_rates != "never")
                 mag_setup.start(now)
         if mag_setup is not None:
             mag_setup.poll(conn, now)

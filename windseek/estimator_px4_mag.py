@@ -12,10 +12,11 @@ horizontal RMSE 0.407 m/s, coverage 0.971, against 0.536 / 0.972 on HIGHRES_IMU 
 How, after lock-on to an autopilot that says it is PX4: PARAM_REQUEST_READ by name, first the board's four
 parameters and every slot's ``CAL_MAGn_ID`` / ``_PRIO``, then the fields of the enabled slots; up to
 :data:`BATCH` requests at a time, what is missing asked again every :data:`RETRY_S`, all within
-``timeout_s`` of wall time. Then SCALED_IMU is asked for at :data:`SCALED_IMU_HZ` (SET_MESSAGE_INTERVAL) and
-the calibration handed to the core, or one line says why the field stays HIGHRES_IMU's (a parameter not
-read in time, several compasses, a power compensation). PX4 sends INT32 parameters bytewise in the float
-field (``wire.param_codec``).
+``timeout_s`` of wall time. Then SCALED_IMU is asked for at :data:`SCALED_IMU_HZ` (SET_MESSAGE_INTERVAL; not
+when it already streams that fast, and not at all with ``--request-rates never``, when only a stream already
+that fast is taken) and the calibration handed to the core, or one line says why the field stays HIGHRES_IMU's
+(a parameter not read in time, several compasses, a power compensation). PX4 sends INT32 parameters bytewise in
+the float field (``wire.param_codec``).
 """
 
 from __future__ import annotations
@@ -39,10 +40,11 @@ class Px4MagSetup:
     """The read of PX4's calibration as a small state machine driven by the estimator's loop (module docstring)."""
 
     def __init__(self, core: LiveCore, say: Callable[[str], None], timeout_s: float = 8.0,
-                 rate_hz: float = SCALED_IMU_HZ) -> None:  # fmt: skip
+                 rate_hz: float = SCALED_IMU_HZ, may_request: bool = True) -> None:  # fmt: skip
         if not (math.isfinite(rate_hz) and rate_hz > 0.0):
             raise ValueError(f"SCALED_IMU rate {rate_hz} Hz: must be > 0")
         self.rate_hz = rate_hz
+        self.may_request = may_request  # False (--request-rates never): SCALED_IMU only if it streams fast already
         self.core = core
         self.say = say
         self.timeout_s = timeout_s
@@ -101,11 +103,20 @@ class Px4MagSetup:
             self.result = f"compass: the field stays the IMU message's (PX4's calibration not redone: {cal})"
             self.say(self.result)
             return
+        rate = self.core.select.rate_hz("SCALED_IMU")  # already streaming (measured on the autopilot's clock)?
         target = self.core.target
-        if target is not None:
+        if rate is not None and rate >= 0.9 * self.rate_hz:
+            self.say(f"SCALED_IMU streams at {rate:.0f} Hz already: taken for the IMU and raw field as it is")
+        elif not self.may_request:
+            self.result = (f"compass: the field stays the IMU message's (SCALED_IMU at {rate or 0:.0f} Hz, under "
+                           f"{self.rate_hz:g}, and rates may not be asked for)")  # fmt: skip
+            self.say(self.result)
+            return
+        elif target is not None:
             conn.mav.command_long_send(target[0], target[1], MAV_CMD_SET_MESSAGE_INTERVAL, 0, float(MSG_ID_SCALED_IMU),
                                        1e6 / self.rate_hz, 0, 0, 0, 0, 0)  # fmt: skip
-        self.say(f"requested SCALED_IMU (message {MSG_ID_SCALED_IMU}) at {self.rate_hz:g} Hz for the IMU and raw field")
+            self.say(f"requested SCALED_IMU (message {MSG_ID_SCALED_IMU}) at {self.rate_hz:g} Hz for the IMU and "
+                     "raw field")  # fmt: skip
         self.core.use_px4_raw(cal)
         self.result = "px4-scaled-imu"
 

@@ -250,8 +250,11 @@ class Infotaxis(BaseStrategy, PosteriorDisplay):
         u_vec = heading_vec(obs.wind.upwind_rad) if wind is not None and obs.wind is not None else heading_vec(0.0)
         if self.declared is not None:
             return self._descend(obs, u_vec)
-        if wind is None:  # no usable wind direction yet: hold here
-            return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, p.altitude_m), velocity_ned=np.zeros(3),
+        if wind is None:  # no usable wind direction yet: hold here (over the roofs while the inflow is measured,
+            # not back at the search height: flipping between the two mid-climb tripped the live estimator's check)
+            city = self.city
+            alt = city.probe_height_m if city is not None and city.waiting(self.inflow, obs.t) else p.altitude_m
+            return Setpoint(position_ned=self._carrot(obs, np.zeros(2), dt, alt), velocity_ned=np.zeros(3),
                             state="wait-wind")
         if self.city is not None and self.city.obstacles is not None and self.inflow is None:
             self.inflow = self.city.probe(obs.wind.wind_ned if obs.wind is not None else None,
