@@ -20,9 +20,9 @@ from sitl.world.plume.meander import (
     MeanderField,
     axis_calibration,
     frozen_turbulence_variances,
-    meander_at,
 )
 from sitl.world.plume.store import PuffStore
+from sitl.world.plume.substep import NormalBlock, advance_puffs, physical_positions, puff_substep
 from urbanflow.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
@@ -50,55 +50,6 @@ def _reflect_puffs(
         if rx != px or ry != py or rh != ph:
             pos[k, 0], pos[k, 1], pos[k, 2] = rx, ry, rh
     return moved
-
-
-@njit(cache=True)
-def _physical(pos: np.ndarray, out: np.ndarray) -> None:
-    """Physical NED positions (K, 3) m of puffs ``pos`` (x, y NED, unfolded altitude up) into ``out``."""
-    for i in range(pos.shape[0]):
-        out[i, 0] = pos[i, 0]
-        out[i, 1] = pos[i, 1]
-        out[i, 2] = -abs(pos[i, 2])
-
-
-@njit(cache=True)
-def _advance_puffs(
-    pos: np.ndarray,
-    r2: np.ndarray,
-    unit: np.ndarray,
-    serial: np.ndarray,
-    n_groups: int,
-    group: int,
-    vel: np.ndarray,
-    noise: np.ndarray,
-    s_xy: float,
-    s_z: float,
-    w_xy: float,
-    w_z: float,
-    growth: float,
-    h: float,
-    offset: np.ndarray,
-    k: np.ndarray,
-    phase: np.ndarray,
-    amp: np.ndarray,
-) -> None:
-    """One puff substep of ``h`` [s], in place.
-
-    pos (K,3): x, y NED and unfolded altitude (up) [m]; r2 (K,) [m^2]; unit (K,3): cached
-    unit meander, re-sampled at the pre-step position for the puffs whose ``serial`` (K,) falls in
-    ``group`` (serial mod ``n_groups``) or whose cache is NaN; vel (K,3): wind NED [m/s] at the
-    physical puff positions; noise (K,3): standard normals; s_xy, s_z: meander sigma, horizontal
-    and vertical [m/s]; w_xy, w_z: random-walk step standard deviation [m]; growth: r^2 growth
-    rate [m^2/s]; offset/k/phase/amp: meander."""
-    n = pos.shape[0]
-    for i in range(n):
-        if serial[i] % n_groups == group or math.isnan(unit[i, 0]):
-            meander_at(pos[i, 0], pos[i, 1], offset, k, phase, amp, unit[i])
-        # Vertical in the unfolded coordinate: NED velocity is down, altitude is up.
-        pos[i, 0] += (vel[i, 0] + unit[i, 0] * s_xy) * h + noise[i, 0] * w_xy
-        pos[i, 1] += (vel[i, 1] + unit[i, 1] * s_xy) * h + noise[i, 1] * w_xy
-        pos[i, 2] += (-vel[i, 2] + unit[i, 2] * s_z) * h + noise[i, 2] * w_z
-        r2[i] += growth * h
 
 
 #: Query points from which :func:`_puff_concentration` first culls the puffs against their bounding box.
@@ -208,7 +159,9 @@ class PuffPlume:
             self._dom_lo = self._dom_hi = None  # no domain: puffs are kept wherever they go
         self._store = PuffStore()  # x, y NED, unfolded altitude (up) [m]; r^2; mass; release time; ...
         self._phys = np.zeros((0, 3))  # the puffs' physical positions at a substep's start (grown as needed)
-        self._noise = np.zeros((0, 3))  # a substep's random-walk normals
+        self._normals = NormalBlock(self._rng)  # the random-walk normals, drawn ahead
+        self._cal_key: tuple[float, float] | None = None
+        self._cal = np.zeros(7)
         self.released_mass_g = 0.0
         self.removed_domain_mass_g = 0.0
         self.removed_cap_mass_g = 0.0
@@ -284,37 +237,64 @@ class PuffPlume:
                            self._next_serial)  # fmt: skip
         self._next_serial += len(m)
 
-    def _substep(self, t: float, h: float) -> None:
-        self._release(t, h)
-        w_ref, u = self._ref_speed(t)
-        cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
-        cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
-        st = self._store
-        k = len(st)
-        if k:
-            # The meander is smooth and nearly frozen in the frame the puffs ride in, so
-            # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S, a
-            # 1/n_groups share of them per substep, by serial number. (New puffs have a NaN cache
-            # and are sampled in the same pass.)
-            if self._phys.shape[0] < k:
-                self._phys, self._noise = np.zeros((2 * k, 3)), np.zeros((2 * k, 3))
-            phys = self._phys[:k]  # physical positions at the start of the step
-            _physical(st.pos, phys)
-            vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
+    def _calibration(self, u: float, h: float) -> np.ndarray:
+        """The substep's dispersion parameters at reference speed ``u`` [m/s] over ``h`` [s] (see
+        :func:`sitl.world.plume.substep.puff_substep`), kept while ``u`` and ``h`` stay the same."""
+        if self._cal_key != (u, h):
+            cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
+            cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
             growth = PUFF_GROWTH_SHARE * min(cal_y.small_scale_rate, cal_z.small_scale_rate)
             walk_y = math.sqrt(max(cal_y.small_scale_rate - growth, 0.0) * h)
             walk_z = math.sqrt(max(cal_z.small_scale_rate - growth, 0.0) * h)
-            noise = self._rng.standard_normal((k, 3), out=self._noise[:k])
+            self._cal = np.array([cal_y.meander_sigma, cal_z.meander_sigma, walk_y, walk_z, growth,
+                                  cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time])  # fmt: skip
+            self._cal_key = (u, h)
+        return self._cal
+
+    def _substep(self, t: float, h: float) -> None:
+        self._release(t, h)
+        w_ref, u = self._ref_speed(t)
+        cal = self._calibration(u, h)
+        st = self._store
+        k = len(st)
+        wk = self._wind.kernel() if hasattr(self._wind, "kernel") else None
+        if wk is None:
+            self._substep_python(t, h, w_ref, cal)
+        else:
+            # The meander is smooth and nearly frozen in the frame the puffs ride in, so a puff's sample changes
+            # slowly: each puff re-samples it every MEANDER_REFRESH_S, a 1/n_groups share of the puffs per substep,
+            # by serial number (new puffs have a NaN cache and are sampled in the same pass).
+            if self._phys.shape[0] < k:
+                self._phys = np.zeros((2 * k, 3))
+            self._normals.ensure(3 * k)
             mf = self._meander
-            _advance_puffs(
-                st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups, vel, noise,
-                cal_y.meander_sigma, cal_z.meander_sigma, walk_y, walk_z, growth, h, mf.offset, mf.k, mf.phase, mf.amp,
-            )  # fmt: skip
+            puff_substep(t, h, st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups,
+                         self._phys, self._normals.nz, self._normals.nat, cal, w_ref, mf.offset, mf.k, mf.phase,
+                         mf.amp, mf.omega_hat, mf.vertical, wk)  # fmt: skip
+        if k:
             if self._obstacles.heights.shape[0]:
-                self._reflect(phys)
+                self._reflect(self._phys[:k])
             self._remove()
-        self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
         self._substep_count += 1
+
+    def _substep_python(self, t: float, h: float, w_ref: np.ndarray, cal: np.ndarray) -> None:
+        """:func:`puff_substep` for a wind model without a compiled kernel (sampled through ``velocity``)."""
+        st = self._store
+        k = len(st)
+        if k:
+            if self._phys.shape[0] < k:
+                self._phys = np.zeros((2 * k, 3))
+            phys = self._phys[:k]
+            physical_positions(st.pos, phys)
+            vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
+            self._normals.ensure(3 * k)
+            a = int(self._normals.nat[0])
+            noise = self._normals.nz[a:a + 3 * k].reshape(k, 3)
+            self._normals.nat[0] = a + 3 * k
+            mf = self._meander
+            advance_puffs(st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups,
+                          vel, noise, cal[0], cal[1], cal[2], cal[3], cal[4], h, mf.offset, mf.k, mf.phase, mf.amp)
+        self._meander.advance(w_ref[:2], cal[5], cal[6], h)
 
     def _reflect(self, before: np.ndarray) -> None:
         """Puffs whose step ended inside a building mirrored out of it (off the wall or roof they
