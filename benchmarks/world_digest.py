@@ -3,7 +3,8 @@ kept the numbers bit for bit (issue 30).
 
 Flies ``open-field`` 40 s, ``paper-s1`` 30 s and ``paper-s4`` 20 s (fixed seeds, their routes) and hashes, after
 every slow tick (50 Hz): the world's state vector, flags and tick, the autopilot's setpoint and controller memory, the
-plume's live puffs (position, r^2, mass, meander cache) and every sensor sample drained since the previous slow tick
+plume's live puffs (position, r^2, mass, meander cache, release time and serial), its mass budget and meander frame,
+the chemical sensor's element and every sensor sample drained since the previous slow tick
 (IMU, ESC, GNSS, baro, magnetometer, chemical), each value exactly (floats by their bits, not a rounded repr).
 Prints a 16-hex digest per scenario. Usage:
 
@@ -74,7 +75,9 @@ def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
         plume = s.plume
         store = getattr(plume, "_store", None)
         if store is not None:
-            canonical((plume.t, store.pos, store.r2, store.mass, store.unit), h)
+            canonical((plume.t, store.pos, store.r2, store.mass, store.unit, store.t_rel, store.serial.astype(float),
+                       plume.released_mass_g, plume.removed_domain_mass_g, plume.removed_cap_mass_g, plume.reflected,
+                       plume._meander.offset, plume._meander.phase, s.chem.sensor.state_mg_m3), h)
         got = samples(s.drain())
         for name, sample in got:
             h.update(name.encode())

@@ -210,25 +210,34 @@ class PuffPlume:
 
     def _release(self, t: float, h: float) -> None:
         cfg = self.config
-        new_pos, new_t, new_m = [], [], []
+        runs = []
         for i, s in enumerate(cfg.sources):
             if s.rate_g_s <= 0.0:
                 continue
             # Release times start_s + k/puff_rate_hz that fall in [t, t+h) and < stop_s.
             k0 = max(self._n_released[i], math.ceil((t - s.start_s) * cfg.puff_rate_hz - 1e-9))
             k1 = math.ceil((min(t + h, s.stop_s) - s.start_s) * cfg.puff_rate_hz - 1e-9)
-            if k1 <= k0:
-                continue
-            n = k1 - k0
-            self._n_released[i] = k1
-            p = np.empty((n, 3))
+            if k1 > k0:
+                self._n_released[i] = k1
+                runs.append((i, s.start_s, k0, k1))
+        if not runs:
+            return
+        i, start, k0, k1 = runs[0]
+        if len(runs) == 1 and k1 - k0 == 1:  # one puff (the usual substep): its values written as they are
+            self.released_mass_g += float(self._puff_mass_g[i])
+            src = self._src[i]
+            self._store.append_one(src[0], src[1], -src[2], start + k0 / cfg.puff_rate_hz, self._puff_mass_g[i],
+                                   cfg.source_radius_m**2, self._next_serial)  # fmt: skip
+            self._next_serial += 1
+            return
+        new_pos, new_t, new_m = [], [], []
+        for i, start, k0, k1 in runs:
+            p = np.empty((k1 - k0, 3))
             p[:, :2] = self._src[i, :2]
             p[:, 2] = -self._src[i, 2]
             new_pos.append(p)
-            new_t.append(s.start_s + np.arange(k0, k1) / cfg.puff_rate_hz)
-            new_m.append(np.full(n, self._puff_mass_g[i]))
-        if not new_pos:
-            return
+            new_t.append(start + np.arange(k0, k1) / cfg.puff_rate_hz)
+            new_m.append(np.full(k1 - k0, self._puff_mass_g[i]))
         m = np.concatenate(new_m) if len(new_m) > 1 else new_m[0]
         self.released_mass_g += float(m.sum())
         # New puffs get their meander sample in this substep's refresh (see _substep).
