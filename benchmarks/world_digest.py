@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import hashlib
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -27,11 +28,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from toolchain import numba_cache  # before any kernel module
 
 numba_cache.configure()
-from sitl.scenario import load_scenario  # noqa: E402
+from sitl.scenario import Route, Scenario, Waypoint, load_scenario  # noqa: E402
 from sitl.simulation import Simulation  # noqa: E402
 
-#: (scenario, simulated seconds, seed) flown by default.
-CASES = (("open-field", 40.0, 7), ("paper-s1", 30.0, 3), ("paper-s4", 20.0, 5))
+#: (scenario, simulated seconds, seed) flown by default; "modes" is paper-s1 flown from the ground through every mode.
+CASES = (("open-field", 40.0, 7), ("paper-s1", 30.0, 3), ("paper-s4", 20.0, 5), ("modes", 120.0, 9))
+
+
+def modes_scenario() -> Scenario:
+    """paper-s1's wind from the ground: take-off, two waypoints (one far: the setpoint leads), land; the digest then
+    arms, takes off and returns to launch (climb, return, descent) with the commands of the MAVLink link."""
+    sc = load_scenario("paper-s1")
+    route = Route(takeoff_altitude_m=8.0, cruise_speed_m_s=4.0, land=True,
+                  waypoints=(Waypoint((15.0, 0.0, -8.0), hold_s=2.0), Waypoint((40.0, 30.0, -12.0), speed_m_s=6.0)))
+    return replace(sc, start=replace(sc.start, position_ned=(0.0, 0.0, 0.0), airborne=False), route=route)
 
 
 def canonical(value: Any, h: Any) -> None:
@@ -65,7 +75,8 @@ def samples(drained: dict[str, Any]) -> list[tuple[str, Any]]:
 
 def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
     """(16-hex digest, slow ticks hashed, samples hashed) of ``scenario`` flown ``seconds`` s with ``seed``."""
-    sim = Simulation(load_scenario(scenario).with_duration(seconds + 1.0), seed=seed)
+    sc = modes_scenario() if scenario == "modes" else load_scenario(scenario)
+    sim = Simulation(sc.with_duration(seconds + 1.0), seed=seed)
     h = hashlib.sha256()
     counts = [0, 0]
 
@@ -86,7 +97,13 @@ def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
         counts[1] += len(got)
 
     sim.step_hooks.append(hook)
-    sim.run(seconds)
+    if scenario == "modes":
+        sim.run_until(70.0)  # landed and disarmed by then
+        fc = sim.fc
+        canonical((fc.arm()[0], fc.takeoff(6.0)[0]), h)
+        sim.run_until(85.0)
+        canonical(fc.rtl()[0], h)
+    sim.run_until(seconds)
     hook(sim)
     return h.hexdigest()[:16], counts[0], counts[1]
 
