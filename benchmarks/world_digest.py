@@ -1,12 +1,12 @@
 """World digest: one SHA-256 over everything a flight of the built-in autopilot produces, to show a speed change
 kept the numbers bit for bit (issue 30).
 
-Flies ``open-field`` 40 s, ``paper-s1`` 30 s and ``paper-s4`` 20 s (fixed seeds, their routes) and hashes, after
-every slow tick (50 Hz): the world's state vector, flags and tick, the autopilot's setpoint and controller memory, the
-plume's live puffs (position, r^2, mass, meander cache, release time and serial), its mass budget and meander frame,
-the chemical sensor's element and every sensor sample drained since the previous slow tick
-(IMU, ESC, GNSS, baro, magnetometer, chemical), each value exactly (floats by their bits, not a rounded repr).
-Prints a 16-hex digest per scenario. Usage:
+Flies ``open-field`` 40 s, ``paper-s1`` 30 s, ``paper-s4`` 20 s and ``modes`` 120 s (paper-s1 from the ground through
+take-off, waypoints, land, take-off and RTL) with fixed seeds and hashes, after every slow tick (50 Hz): the world's
+state vector, flags and tick, the autopilot's setpoint and controller memory, the run's statistics, the plume's live
+puffs (position, r^2, mass, meander cache, release time and serial), its mass budget and meander frame, the chemical
+sensor's element, and every sensor sample drained since the previous slow tick (IMU, ESC, GNSS, baro, magnetometer,
+chemical), each value exactly (floats by their bits, not a rounded repr). Prints a 16-hex digest per scenario. Usage:
 
     python benchmarks/world_digest.py [--scenario open-field:40:7 ...]
 """
@@ -82,7 +82,9 @@ def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
 
     def hook(s: Simulation) -> None:
         w = s.world
-        canonical((w.tick, w.phys.x, w.phys.flags, w.phys.fb, s.autopilot.fc.sp, s.autopilot.cs), h)
+        st = s.stats
+        canonical((w.tick, w.phys.x, w.phys.flags, w.phys.fb, s.autopilot.fc.sp, s.autopilot.cs, st.pos_err_sq_sum,
+                   st.pos_err_n, st.airborne_s, st.max_tilt_rad), h)
         plume = s.plume
         store = getattr(plume, "_store", None)
         if store is not None:

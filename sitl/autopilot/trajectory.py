@@ -64,6 +64,15 @@ def trajectory_setpoint(st: np.ndarray, sp: np.ndarray, dt: float, cruise: float
     sp[SP_YAW] = yaw
 
 
+@njit(cache=True)
+def waypoint_reached(st: np.ndarray, vehicle_pos: np.ndarray, radius: float) -> bool:
+    """The vehicle (NED, m) within ``radius`` [m] of the moving setpoint's target and the setpoint arrived there
+    (within 1 mm) (the norms as :func:`vec_norm`)."""
+    e = vehicle_pos - st[3:6]
+    d = st[0:3] - st[3:6]
+    return math.sqrt(e.dot(e)) <= radius and math.sqrt(d.dot(d)) < 1e-3
+
+
 class Trajectory:
     """A setpoint that travels from its current point toward a target at a speed, with acceleration and
     deceleration limits, so waypoints are approached without overshoot. ``pos``, ``target``, ``vel`` and ``acc``
