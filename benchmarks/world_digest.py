@@ -8,7 +8,7 @@ puffs (position, r^2, mass, meander cache, release time and serial), its mass bu
 sensor's element, and every sensor sample drained since the previous slow tick (IMU, ESC, GNSS, baro, magnetometer,
 chemical), each value exactly (floats by their bits, not a rounded repr). Prints a 16-hex digest per scenario. Usage:
 
-    python benchmarks/world_digest.py [--scenario open-field:40:7 ...]
+    python benchmarks/world_digest.py [--scenario open-field:40:7[:vehicle] ...]
 """
 
 from __future__ import annotations
@@ -73,9 +73,12 @@ def samples(drained: dict[str, Any]) -> list[tuple[str, Any]]:
     return out
 
 
-def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
-    """(16-hex digest, slow ticks hashed, samples hashed) of ``scenario`` flown ``seconds`` s with ``seed``."""
+def digest(scenario: str, seconds: float, seed: int, vehicle: str | None = None) -> tuple[str, int, int]:
+    """(16-hex digest, slow ticks hashed, samples hashed) of ``scenario`` flown ``seconds`` s with ``seed`` (and the
+    vehicle file ``vehicle`` instead of the scenario's)."""
     sc = modes_scenario() if scenario == "modes" else load_scenario(scenario)
+    if vehicle:
+        sc = replace(sc, vehicle=vehicle)
     sim = Simulation(sc.with_duration(seconds + 1.0), seed=seed)
     h = hashlib.sha256()
     counts = [0, 0]
@@ -113,12 +116,14 @@ def digest(scenario: str, seconds: float, seed: int) -> tuple[str, int, int]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", action="append", default=None,
-                    help="name:seconds:seed (repeatable); default: " + " ".join(f"{a}:{b:g}:{c}" for a, b, c in CASES))
+                    help="name:seconds:seed[:vehicle] (repeatable); default: "
+                    + " ".join(f"{a}:{b:g}:{c}" for a, b, c in CASES))  # fmt: skip
     args = ap.parse_args()
-    cases = [(a, float(b), int(c)) for a, b, c in (s.split(":") for s in args.scenario)] if args.scenario else CASES
-    for name, seconds, seed in cases:
-        d, ticks, n = digest(name, seconds, seed)
-        print(f"{name:12s} {seconds:5.0f} s seed {seed}: {d}  ({ticks} slow ticks, {n} samples)", flush=True)
+    cases = [tuple(s.split(":")) for s in args.scenario] if args.scenario else [tuple(map(str, c)) for c in CASES]
+    for name, seconds, seed, *vehicle in cases:
+        d, ticks, n = digest(name, float(seconds), int(seed), vehicle[0] if vehicle else None)
+        label = name + (f" ({vehicle[0]})" if vehicle else "")
+        print(f"{label:12s} {float(seconds):5.0f} s seed {seed}: {d}  ({ticks} slow ticks, {n} samples)", flush=True)
 
 
 if __name__ == "__main__":
