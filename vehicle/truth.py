@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vehicle.bet import N_BLADE, rotor_loads
+from vehicle.bet import rotor_loads
 from vehicle.params import (
     MAX_ROTORS,
     P_BLADE0,
@@ -72,7 +72,9 @@ def _bet_wrench(v_hubs: np.ndarray, v_air: np.ndarray, rates: np.ndarray, w_rot:
                 loads: np.ndarray) -> None:  # fmt: skip
     """The blade-element wrench into ``fm`` (6,); ``loads`` (6,) is scratch."""
     n = int(p[P_NROT])
-    bp = p[P_BLADE0:P_BLADE0 + N_BLADE]
+    # The blade parameters as scalars read once (a tuple: the rotor loop's constant arithmetic is then done once).
+    b = P_BLADE0
+    bp = (p[b], p[b + 1], p[b + 2], p[b + 3], p[b + 4], p[b + 5], p[b + 6], p[b + 7], p[b + 8], p[b + 9])
     rho = p[P_RHO]
     fm[:] = 0.0
     jh = p[P_JHUB]

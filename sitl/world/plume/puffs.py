@@ -23,6 +23,7 @@ from sitl.world.plume.meander import (
 )
 from sitl.world.plume.store import PuffStore
 from sitl.world.plume.substep import NormalBlock, advance_puffs, physical_positions, puff_substep
+from sitl.world.wind.kernel import wind_mean
 from urbanflow.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
@@ -107,6 +108,27 @@ def _puff_concentration(pts: np.ndarray, pos: np.ndarray, r2: np.ndarray, mass: 
     return out
 
 
+@njit(cache=True)
+def _puff_concentration_at(px: float, py: float, pz: float, pos: np.ndarray, r2: np.ndarray, mass: np.ndarray) -> float:
+    """:func:`_puff_concentration` at one NED point (px, py, pz) [m] (mg/m^3): the same terms in the same order,
+    without the arrays (the chemical sensor's reading, at the sensor rate)."""
+    zq = -pz
+    acc = 0.0
+    for q in range(pos.shape[0]):
+        inv = -0.5 / r2[q]
+        dx = px - pos[q, 0]
+        dy = py - pos[q, 1]
+        e = (dx * dx + dy * dy) * inv
+        if e < -40.0:
+            continue
+        zp = abs(pos[q, 2])
+        dzm = zq - zp
+        dzp = zq + zp
+        norm = mass[q] * G_TO_MG / (TWO_PI_POW_1_5 * r2[q] * math.sqrt(r2[q]))
+        acc += norm * (math.exp(e + dzm * dzm * inv) + math.exp(e + dzp * dzp * inv))
+    return acc
+
+
 class PuffPlume:
     """Instantaneous puff (filament) plume, Farrell et al. (2002) style.
 
@@ -144,6 +166,7 @@ class PuffPlume:
         self._substep_count = 0
         self._next_serial = 0
         self._src = np.array([s.position_ned for s in config.sources], dtype=float)
+        self._src0 = self._src[0].copy()
         self._puff_mass_g = np.array([s.rate_g_s / config.puff_rate_hz for s in config.sources])
         self._n_released = np.zeros(len(config.sources), dtype=np.int64)
         self._t = float(t0)
@@ -194,7 +217,9 @@ class PuffPlume:
         return self.removed_domain_mass_g + self.removed_cap_mass_g
 
     def _ref_speed(self, t: float) -> tuple[np.ndarray, float]:
-        w = np.asarray(self._wind.mean(t, self._src[0]), dtype=float)
+        wk = self._wind.kernel() if hasattr(self._wind, "kernel") else None
+        # The mean wind at the first source (the field's compiled sampler called directly when it has one).
+        w = wind_mean(float(t), self._src0, wk) if wk is not None else np.asarray(self._wind.mean(t, self._src0), float)
         return w, max(math.hypot(w[0], w[1]), self.config.min_wind_speed_m_s)
 
     # ------------------------------------------------------------------ dynamics
@@ -320,17 +345,19 @@ class PuffPlume:
                 st.keep(inside)
         excess = len(st) - self.config.max_puffs
         if excess > 0:
-            # Puffs are stored in release order, so the first ones are the oldest.
-            self.removed_cap_mass_g += float(st.mass[:excess].sum())
+            # Puffs are stored in release order, so the first ones are the oldest (one: the sum is its mass).
+            self.removed_cap_mass_g += float(st.mass[0] if excess == 1 else st.mass[:excess].sum())
             st.drop_oldest(excess)
 
     # ------------------------------------------------------------------ output
     def concentration(self, points: np.ndarray) -> np.ndarray | float:
         """Concentration [mg/m^3] at (N,3) NED points -> (N,), or (3,) -> float."""
+        st = self._store
+        if isinstance(points, np.ndarray) and points.shape == (3,) and points.dtype == np.float64:
+            return _puff_concentration_at(points[0], points[1], points[2], st.pos, st.r2, st.mass)
         pts = np.asarray(points, dtype=float)
         single = pts.ndim == 1
         pts = np.atleast_2d(pts)
-        st = self._store
         out = _puff_concentration(np.ascontiguousarray(pts), st.pos, st.r2, st.mass)
         return float(out[0]) if single else out
 
