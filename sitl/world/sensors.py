@@ -1,6 +1,8 @@
 """MEMS-grade sensor models: IMU, ESC rotor-speed telemetry, GNSS, barometer, magnetometer,
-air temperature. Seeded, vectorized over batches of truth samples; the IMU (250 Hz, called once
-per control period or, over HIL, per 4 ms step) is one compiled call on noise drawn in blocks.
+air temperature. Seeded; sampled in compiled code (:mod:`sitl.world.sensor_kernel`): the IMU and ESC
+samples of a control period (or, over HIL, a 4 ms step) in one call, GNSS, barometer and
+magnetometer in one call per slow tick, on noise drawn ahead in blocks; the samples are kept as
+rows of arrays and made into the objects below when drained.
 
 Units and frames: accelerometer specific force in m/s^2 and gyro rates in rad/s, both FRD
 body; rotor speeds rad/s; GNSS position NED m (plus WGS-84 lat/lon/alt about the home point)
@@ -269,29 +271,39 @@ class SensorSuite:
         if low:
             self._make_room(low)
 
-    def _take(self, s: int) -> np.ndarray:
-        """Log ``s``'s samples since the previous take (the newest ``maxlen``; GNSS: the delivered fixes)."""
-        n = int(self._cnt[s])
-        done = int(self._cnt[sk.K_GNSS_DELIVERED]) if s == sk.S_GNSS else n
+    def _take(self, s: int, n: int, done: int) -> np.ndarray:
+        """Log ``s``'s first ``done`` of ``n`` rows (the newest ``maxlen`` of them), the rest (GNSS fixes still
+        pending) moved to the front."""
         log = self._logs[s]
         out = log[max(0, done - self.maxlen):done].copy()
-        log[: n - done] = log[done:n].copy()
+        if n > done:
+            log[: n - done] = log[done:n].copy()
         self._cnt[s] = n - done
-        if s == sk.S_GNSS:
-            self._cnt[sk.K_GNSS_DELIVERED] = 0
         return out
 
     def drain(self) -> dict[str, list[Any]]:
         """All samples since the previous drain, by sensor, oldest first: ``imu`` (t, accel FRD (3,), gyro FRD (3,)),
         ``esc`` (t, rotor speeds (N,)), ``gnss`` :class:`GnssSample`, ``baro`` :class:`BaroSample`, ``mag``
-        :class:`MagSample`."""
-        imu, esc, gnss, baro, mag = (self._take(s) for s in range(sk.N_STREAMS))
-        sats = int if isinstance(self.config.gnss.satellites, int) else float
-        return {
-            "imu": list(zip(imu[:, 0].tolist(), imu[:, 1:4].copy(), imu[:, 4:7].copy(), strict=True)),
-            "esc": list(zip(esc[:, 0].tolist(), esc[:, 1:].copy(), strict=True)),
-            "gnss": [GnssSample(r[0], g[1:4].copy(), g[4:7].copy(), r[7], r[8], r[9], sats(r[10]))
-                     for r, g in zip(gnss.tolist(), gnss, strict=True)],  # fmt: skip
-            "baro": [BaroSample(*r) for r in baro.tolist()],
-            "mag": [MagSample(r[0], m[1:4].copy()) for r, m in zip(mag.tolist(), mag, strict=True)],
-        }
+        :class:`MagSample`. (A lockstep bridge drains every few ticks: an empty log costs a comparison.)"""
+        n_imu, n_esc, n_gnss, n_baro, n_mag, n_fix = self._cnt.tolist()
+        out: dict[str, list[Any]] = {"imu": [], "esc": [], "gnss": [], "baro": [], "mag": []}
+        if n_imu:  # (few samples: views of each row; many: of the columns, copied once)
+            r = self._take(sk.S_IMU, n_imu, n_imu)
+            out["imu"] = ([(v[0], row[1:4], row[4:7]) for v, row in zip(r.tolist(), r, strict=True)] if n_imu <= 16
+                          else list(zip(r[:, 0].tolist(), r[:, 1:4].copy(), r[:, 4:7].copy(), strict=True)))
+        if n_esc:
+            r = self._take(sk.S_ESC, n_esc, n_esc)
+            out["esc"] = ([(v[0], row[1:]) for v, row in zip(r.tolist(), r, strict=True)] if n_esc <= 16
+                          else list(zip(r[:, 0].tolist(), r[:, 1:].copy(), strict=True)))
+        if n_fix:
+            r = self._take(sk.S_GNSS, n_gnss, n_fix)
+            self._cnt[sk.K_GNSS_DELIVERED] = 0
+            sats = int if isinstance(self.config.gnss.satellites, int) else float
+            out["gnss"] = [GnssSample(v[0], g[1:4].copy(), g[4:7].copy(), v[7], v[8], v[9], sats(v[10]))
+                           for v, g in zip(r.tolist(), r, strict=True)]  # fmt: skip
+        if n_baro:
+            out["baro"] = [BaroSample(*v) for v in self._take(sk.S_BARO, n_baro, n_baro).tolist()]
+        if n_mag:
+            r = self._take(sk.S_MAG, n_mag, n_mag)
+            out["mag"] = [MagSample(v[0], m[1:4].copy()) for v, m in zip(r.tolist(), r, strict=True)]
+        return out

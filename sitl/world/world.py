@@ -12,9 +12,9 @@ rows). It has no autopilot inside. Something that produces rotor commands is a :
 Timing: physics runs at ``scenario.physics_rate_hz`` (500 Hz by default, RK4). At every slow tick
 (``scenario.mode_rate_hz``, 50 Hz) the pilot's slow logic runs first, then the low-rate sensors
 (GNSS, barometer, magnetometer) and the plume and chemical sensor; the IMU and ESC samples come
-from the truth rows the physics loop writes at the IMU rate, turned into measurements in
-vectorized batches. Same scenario, seed and commands give the same trajectory bit for bit,
-however the steps are grouped.
+from the truth rows the physics loop writes at the IMU rate, turned into measurements in one
+compiled call per control period (:mod:`sitl.world.sensor_kernel`). Same scenario, seed and
+commands give the same trajectory bit for bit, however the steps are grouped.
 
 Seeding: ``SeedSequence(seed).spawn(3)`` = (wind, sensors, extra); the plume is spawned from
 ``extra``. Units SI; NED world, FRD body; wind = air-mass velocity NED.
