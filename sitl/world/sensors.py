@@ -15,12 +15,14 @@ u-blox M9 class GNSS, MS5611/BMP388 barometer); every value is a config field.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from sitl.world import sensor_kernel as sk
+from sitl.world.kernel import compiled_entry
 
 EARTH_RADIUS_M = sk.EARTH_RADIUS_M
 #: Normals drawn ahead per sensor stream (the IMU uses 12 a sample, 3,000 a second): the same stream as drawing
@@ -216,6 +218,8 @@ class SensorSuite:
         self._logs = [np.zeros((max(256, 4 * batch_rows), w)) for w in widths]
         self._cap = np.array([b.shape[0] for b in self._logs], dtype=np.int64)
         self._cnt = np.zeros(sk.N_STREAMS + 1, dtype=np.int64)  # rows per log, then the GNSS fixes delivered
+        self._imu_fn: Callable[..., int] | None = None  # the compiled kernels (see sitl.world.kernel.compiled_entry)
+        self._slow_fn: Callable[..., int] | None = None
 
     @property
     def config(self) -> SensorSuiteConfig:
@@ -257,17 +261,22 @@ class SensorSuite:
     def imu_batch(self, rows: np.ndarray, nrow: int, esc_first: int, esc_every: int) -> None:
         """IMU samples of truth rows ``rows[:nrow]`` (see :mod:`sitl.world.kernel`), ESC samples of every
         ``esc_every``-th of them from ``esc_first``."""
-        low = sk.imu_period(rows, nrow, self.n_rotors, esc_first, esc_every, self._packed, self.accel_bias,
-                            self.gyro_bias, self._nz, self._nat, self._logs[0], self._logs[1], self._cnt, self._need,
-                            self._cap)  # fmt: skip
+        args = (rows, nrow, self.n_rotors, esc_first, esc_every, self._packed, self.accel_bias, self.gyro_bias,
+                self._nz, self._nat, self._logs[0], self._logs[1], self._cnt, self._need, self._cap)
+        if self._imu_fn is None:  # the argument types never change: the compiled function looked up once
+            self._imu_fn = compiled_entry(sk.imu_period, args)
+        low = self._imu_fn(*args)
         if low:
             self._make_room(low)
 
     def slow_tick(self, t: float, x: np.ndarray, due: int) -> None:
         """GNSS fix, baro and magnetometer samples at time ``t`` [s] on state ``x`` as ``due`` says
         (``sensor_kernel.DUE_*``); GNSS fixes whose latency has elapsed delivered."""
-        low = sk.slow_sensors(t, x, due, self._packed, self._nz, self._nat, self._logs[2], self._logs[3],
-                              self._logs[4], self._cnt, self._need, self._cap)  # fmt: skip
+        args = (float(t), x, due, self._packed, self._nz, self._nat, self._logs[2], self._logs[3], self._logs[4],
+                self._cnt, self._need, self._cap)
+        if self._slow_fn is None:
+            self._slow_fn = compiled_entry(sk.slow_sensors, args)
+        low = self._slow_fn(*args)
         if low:
             self._make_room(low)
 

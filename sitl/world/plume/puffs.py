@@ -7,11 +7,12 @@ release g/s; concentration mg/m^3.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
 
-from sitl.world.kernel import NO_OBSTACLES, Obstacles
+from sitl.world.kernel import NO_OBSTACLES, Obstacles, compiled_entry
 from sitl.world.plume.config import G_TO_MG, TWO_PI_POW_1_5, PlumeConfig, WindLike, check_config
 from sitl.world.plume.gaussian import BRIGGS_Y, BRIGGS_Z, GaussianPlume, concentration_slice
 from sitl.world.plume.meander import (
@@ -185,6 +186,7 @@ class PuffPlume:
         self._normals = NormalBlock(self._rng)  # the random-walk normals, drawn ahead
         self._cal_key: tuple[float, float] | None = None
         self._cal = np.zeros(7)
+        self._substep_fn: Callable[..., None] | None = None
         self.released_mass_g = 0.0
         self.removed_domain_mass_g = 0.0
         self.removed_cap_mass_g = 0.0
@@ -302,9 +304,12 @@ class PuffPlume:
                 self._phys = np.zeros((2 * k, 3))
             self._normals.ensure(3 * k)
             mf = self._meander
-            puff_substep(t, h, st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups,
-                         self._phys, self._normals.nz, self._normals.nat, cal, w_ref, mf.offset, mf.k, mf.phase,
-                         mf.amp, mf.omega_hat, mf.vertical, wk)  # fmt: skip
+            args = (float(t), float(h), st.pos, st.r2, st.unit, st.serial, self._n_groups,
+                    self._substep_count % self._n_groups, self._phys, self._normals.nz, self._normals.nat, cal, w_ref,
+                    mf.offset, mf.k, mf.phase, mf.amp, mf.omega_hat, mf.vertical, wk)  # fmt: skip
+            if self._substep_fn is None:  # fixed argument types: the compiled function looked up once
+                self._substep_fn = compiled_entry(puff_substep, args)
+            self._substep_fn(*args)
         if k:
             if self._obstacles.heights.shape[0]:
                 self._reflect(self._phys[:k])
