@@ -20,12 +20,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from sitl.autopilot.builtin import BuiltinAutopilot
-from sitl.autopilot.controller import F_IDLE, SP_FLAGS, SP_POS
+from sitl.autopilot.controller import F_IDLE, F_POS, SP_FLAGS, SP_POS
 from sitl.autopilot.flight_modes import FlightController
 from sitl.scenario import Scenario
 from sitl.world.kernel import (
+    FLAG_ON_GROUND,
     N_TRUTH,
     T_POS,
     T_QUAT,
@@ -42,6 +44,7 @@ from sitl.world.plume.puffs import GaussianPlume, PuffPlume
 from sitl.world.sensors import BaroSample, GnssSample, MagSample
 from sitl.world.wind.model import WindModel
 from sitl.world.world import World
+from vehicle.frames import tilt_angle
 from vehicle.params import VehicleParams
 
 
@@ -195,16 +198,17 @@ class Simulation:
             self.step(target - self.tick)
 
     def _after_slow_tick(self) -> None:
-        x = self.world.phys.x
-        fc = self.fc
-        # Figures of merit: distance to the commanded (moving) setpoint while flying.
-        flags = int(fc.sp[SP_FLAGS])
-        if fc.armed and not self.on_ground and flags & 1 and not flags & F_IDLE:
-            err = x[0:3] - fc.sp[SP_POS:SP_POS + 3]
-            self.stats.pos_err_sq_sum += float(err @ err)
-            self.stats.pos_err_n += 1
-            self.stats.airborne_s += self.world.slow_div * self.dt
-        self.stats.max_tilt_rad = max(self.stats.max_tilt_rad, self.tilt_rad)
+        w = self.world
+        fc = self.autopilot.fc
+        st = self.stats
+        # Figures of merit: distance to the commanded (moving) setpoint while flying, and the largest tilt.
+        flying = fc.armed and w.phys.flags[FLAG_ON_GROUND] == 0.0
+        err_sq, tilt = _tracking(w.phys.x, fc.sp, flying)
+        if err_sq >= 0.0:
+            st.pos_err_sq_sum += err_sq
+            st.pos_err_n += 1
+            st.airborne_s += w.slow_div * w.phys.dt
+        st.max_tilt_rad = max(st.max_tilt_rad, tilt)
         for hook in self.step_hooks:
             hook(self)
 
@@ -231,6 +235,18 @@ class Simulation:
     def truth_array(self) -> np.ndarray:
         """All recorded truth rows (needs ``record_truth=True``), shape (K, N_TRUTH)."""
         return self.world.truth_array()
+
+
+@njit(cache=True)
+def _tracking(x: np.ndarray, sp: np.ndarray, flying: bool) -> tuple[float, float]:
+    """(squared distance [m^2] from the state ``x``'s position to the setpoint ``sp``'s position when ``flying`` under
+    position control, not idle, else -1; the tilt [rad]), for :class:`RunStats` (numpy's ``err @ err``: BLAS)."""
+    flags = int(sp[SP_FLAGS])
+    err_sq = -1.0
+    if flying and flags & F_POS and not flags & F_IDLE:
+        err = x[0:3] - sp[SP_POS:SP_POS + 3]
+        err_sq = err.dot(err)
+    return err_sq, tilt_angle(x[6:10])
 
 
 # The truth-row columns are part of the lockstep API (they are defined with the physics loop).

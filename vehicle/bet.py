@@ -130,7 +130,7 @@ def _inplane(mu: float, lam: float, pb: float, qb: float, th0: float, ttw: float
 @njit(cache=True, inline="always")
 def rotor_loads(
     v_hub: np.ndarray, rates: np.ndarray, omega: float, spin: float, v_i: float, rho: float,
-    bp: np.ndarray, out: np.ndarray,
+    bp: np.ndarray | tuple[float, ...], out: np.ndarray,
 ) -> float:  # fmt: skip
     """Loads of one rotor and the rate of change of its induced velocity.
 
@@ -139,7 +139,7 @@ def rotor_loads(
         rates: body rates FRD, rad/s (the shaft's pitch and roll rates drive the flapping).
         omega: rotor speed, rad/s (>= 0). spin: +1 counter-clockwise seen from above, -1 clockwise.
         v_i: induced velocity through the disc (m/s, positive down the shaft): the inflow state.
-        rho: air density, kg/m^3. bp: the rotor's blade parameters (``B_*`` indices).
+        rho: air density, kg/m^3. bp: the rotor's blade parameters (``B_*`` indices; an array or a tuple).
         out: receives force (N) and moment about the hub (N*m), body FRD, ``[Fx, Fy, Fz, L, M, N]``;
             the moment holds the hinge-spring moments and the rotor torque, not the arm's r x F.
     Returns: d v_i / dt, m/s^2.

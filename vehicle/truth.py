@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vehicle.bet import N_BLADE, rotor_loads
+from vehicle.bet import rotor_loads
 from vehicle.params import (
     MAX_ROTORS,
     P_BLADE0,
@@ -50,7 +50,7 @@ from vehicle.params import (
 from vehicle.rotor_model import N_COEF, rotor_wrench_into
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def hub_airspeeds(R: np.ndarray, vel: np.ndarray, rates: np.ndarray, hub_winds: np.ndarray, p: np.ndarray,
                   out: np.ndarray) -> None:  # fmt: skip
     """Velocity of every hub through the air, body FRD (N, 3) m/s: R^T (V - W_hub) + omega x r (Eq. 5).
@@ -66,13 +66,15 @@ def hub_airspeeds(R: np.ndarray, vel: np.ndarray, rates: np.ndarray, hub_winds: 
         out[i, 2] += rates[0] * ry - rates[1] * rx
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _bet_wrench(v_hubs: np.ndarray, v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray,
                 w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray, fm: np.ndarray,
                 loads: np.ndarray) -> None:  # fmt: skip
     """The blade-element wrench into ``fm`` (6,); ``loads`` (6,) is scratch."""
     n = int(p[P_NROT])
-    bp = p[P_BLADE0:P_BLADE0 + N_BLADE]
+    # The blade parameters as scalars read once (a tuple: the rotor loop's constant arithmetic is then done once).
+    b = P_BLADE0
+    bp = (p[b], p[b + 1], p[b + 2], p[b + 3], p[b + 4], p[b + 5], p[b + 6], p[b + 7], p[b + 8], p[b + 9])
     rho = p[P_RHO]
     fm[:] = 0.0
     jh = p[P_JHUB]
@@ -124,7 +126,7 @@ def _sih_wrench(v_air: np.ndarray, rates: np.ndarray, w_rot: np.ndarray, p: np.n
         fm[3 + k] -= p[P_SIH_KDW] * rates[k]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def truth_wrench(R: np.ndarray, vel: np.ndarray, rates: np.ndarray, winds: np.ndarray, w_rot: np.ndarray,
                  w_rot_dot: np.ndarray, v_i: np.ndarray, p: np.ndarray, vi_dot: np.ndarray, fm: np.ndarray,
                  v_air: np.ndarray, v_hubs: np.ndarray, loads: np.ndarray, reg: np.ndarray) -> None:  # fmt: skip

@@ -8,12 +8,14 @@ Units SI, NED world, FRD body; gains by name (:class:`~sitl.autopilot.controller
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from sitl.autopilot.controller import GAIN_NAMES, N_CTRL_STATE, ControllerGains
 from sitl.autopilot.flight_modes import FlightConfig, FlightController
 from sitl.autopilot.fused import advance_controlled
+from sitl.world.kernel import compiled_entry
 from sitl.world.world import World
 from vehicle.params import MAX_ROTORS
 
@@ -42,6 +44,8 @@ class BuiltinAutopilot:
         #: on (see :func:`sitl.autopilot.fused.advance_controlled`); none by default.
         self.excitation = np.zeros((0, MAX_ROTORS))
         self.excitation_tick0 = 0
+        self._entry: Callable[..., int] = advance_controlled
+        self._entry_world: World | None = None
 
     # ------------------------------------------------------------------ Pilot
     def on_slow_tick(self, world: World) -> None:
@@ -50,9 +54,14 @@ class BuiltinAutopilot:
 
     def advance(self, world: World, n: int) -> int:
         ph = world.phys
-        return advance_controlled(n, world.tick, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div,
-                                  ph.rows, ph.fb, world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs,
-                                  self.accel_sp, self.excitation, self.excitation_tick0)  # fmt: skip
+        args = (n, world.tick, ph.dt, ph.x, ph.flags, ph.params, ph.crash_speed, ph.imu_div, ph.rows, ph.fb,
+                world.wind_kernel, ph.obstacles, self.fc.sp, self.gains, self.cs, self.accel_sp, self.excitation,
+                self.excitation_tick0)  # fmt: skip
+        if self._entry_world is not world:
+            # The argument types are fixed per world (its arrays and tuples; the excitation is always a 2-D float
+            # array): the compiled loop is looked up once and called directly (see compiled_entry).
+            self._entry, self._entry_world = compiled_entry(advance_controlled, args), world
+        return int(self._entry(*args))
 
     def set_excitation(self, dw2: np.ndarray, tick0: int) -> None:
         """Add ``dw2`` (K, N rotors; rad^2/s^2) to the squared rotor-speed commands of physics ticks

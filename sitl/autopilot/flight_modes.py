@@ -35,7 +35,7 @@ from sitl.autopilot.controller import (
 )
 from sitl.autopilot.mission_exec import MissionExecution
 from sitl.autopilot.modes import FlightConfig, ItemKind, LandedState, MissionItem, Mode, StatusEvent
-from sitl.autopilot.trajectory import Trajectory, vec_norm
+from sitl.autopilot.trajectory import Trajectory, trajectory_setpoint, vec_norm
 
 __all__ = ["F_IDLE", "FlightConfig", "FlightController", "ItemKind", "LandedState", "MissionItem", "Mode",
            "StatusEvent", "Trajectory"]
@@ -269,9 +269,7 @@ class FlightController(MissionExecution):
             return sp
         if self.mode in (Mode.LAND, Mode.RTL) and self._phase == "descend":
             return self._descend_sp(on_ground)
-        q = x[6:10]
-        cur_yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
-        return self._trajectory_sp(dt, speed, on_ground, cur_yaw)
+        return self._trajectory_sp(dt, speed, on_ground, x)
 
     def _observe(self, t: float, x: np.ndarray, on_ground: bool, crashed: bool) -> None:
         self._t = t
@@ -327,14 +325,14 @@ class FlightController(MissionExecution):
             sp[SP_FLAGS] = F_IDLE
         return sp
 
-    def _trajectory_sp(self, dt: float, speed: float, on_ground: bool, cur_yaw: float) -> np.ndarray:
+    def _trajectory_sp(self, dt: float, speed: float, on_ground: bool, x: np.ndarray) -> np.ndarray:
         cfg, sp = self.config, self.sp
-        self._traj.update(dt, speed, cfg.max_accel_m_s2, self._pos, cfg.max_lead_m)
-        sp[:] = 0.0
-        sp[SP_POS:SP_POS + 3] = self._traj.pos
-        sp[SP_VEL:SP_VEL + 3] = self._traj.vel
-        sp[SP_ACC:SP_ACC + 3] = self._traj.acc
-        sp[SP_YAW] = self._yaw if math.isfinite(self._yaw) else cur_yaw
+        yaw = self._yaw
+        if not math.isfinite(yaw):  # hold the current heading (the state's attitude quaternion)
+            q = x[6:10]
+            yaw = math.atan2(2 * (q[0] * q[3] + q[1] * q[2]), 1 - 2 * (q[2] ** 2 + q[3] ** 2))
+        # The moving setpoint stepped and written into sp (cleared; position, velocity, acceleration, yaw) at once.
+        trajectory_setpoint(self._traj.state, sp, dt, speed, cfg.max_accel_m_s2, self._pos, cfg.max_lead_m, yaw)
         flags = F_POS | F_VEL | F_ACC | F_YAW
         taking_off = self.mode == Mode.TAKEOFF or (
             self.mode == Mode.MISSION

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sitl.autopilot.modes import FlightConfig, ItemKind, MissionItem, Mode
-from sitl.autopilot.trajectory import vec_norm
+from sitl.autopilot.trajectory import vec_norm, waypoint_reached
 
 if TYPE_CHECKING:
     from sitl.autopilot.trajectory import Trajectory
@@ -121,8 +121,7 @@ class MissionExecution:
                 self.mission_index += 1
                 self._begin_land()
             return speed
-        reached = bool(vec_norm(self._pos - self._traj.target) <= max(item.acceptance_radius_m, 0.3))
-        reached = reached and bool(vec_norm(self._traj.pos - self._traj.target) < 1e-3)
+        reached = waypoint_reached(self._traj.state, self._pos, max(item.acceptance_radius_m, 0.3))
         if item.kind == ItemKind.TAKEOFF:
             reached = bool(abs(self._pos[2] - self._traj.target[2]) < 0.3 and abs(self._vel[2]) < 0.5
                            and not self._on_ground)  # fmt: skip

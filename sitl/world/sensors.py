@@ -1,6 +1,8 @@
 """MEMS-grade sensor models: IMU, ESC rotor-speed telemetry, GNSS, barometer, magnetometer,
-air temperature. Seeded, vectorized over batches of truth samples; the IMU (250 Hz, called once
-per control period or, over HIL, per 4 ms step) is one compiled call on noise drawn in blocks.
+air temperature. Seeded; sampled in compiled code (:mod:`sitl.world.sensor_kernel`): the IMU and ESC
+samples of a control period (or, over HIL, a 4 ms step) in one call, GNSS, barometer and
+magnetometer in one call per slow tick, on noise drawn ahead in blocks; the samples are kept as
+rows of arrays and made into the objects below when drained.
 
 Units and frames: accelerometer specific force in m/s^2 and gyro rates in rad/s, both FRD
 body; rotor speeds rad/s; GNSS position NED m (plus WGS-84 lat/lon/alt about the home point)
@@ -13,15 +15,19 @@ u-blox M9 class GNSS, MS5611/BMP388 barometer); every value is a config field.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
-from numba import njit
 
-EARTH_RADIUS_M = 6_378_137.0
-#: IMU noise rows drawn at once (12 normals per sample): the same stream as drawing them sample by
-#: sample, without numpy's per-call cost on every control period.
-IMU_NOISE_BLOCK = 250
+from sitl.world import sensor_kernel as sk
+from sitl.world.kernel import compiled_entry
+
+EARTH_RADIUS_M = sk.EARTH_RADIUS_M
+#: Normals drawn ahead per sensor stream (the IMU uses 12 a sample, 3,000 a second): the same stream as drawing
+#: them sample by sample, without numpy's per-call cost at every control period.
+NORMALS_AHEAD = 6000
 
 
 @dataclass(frozen=True)
@@ -166,98 +172,147 @@ class MagSample:
     field_gauss: np.ndarray  # FRD
 
 
+def pack_config(c: SensorSuiteConfig) -> np.ndarray:
+    """The sensor configuration as the compiled kernels read it (:mod:`sitl.world.sensor_kernel`, ``C_*``)."""
+    sq = math.sqrt(1.0 / c.imu.rate_hz)
+    cfg = np.zeros(sk.N_CFG)
+    cfg[sk.C_ACC_N:sk.C_ESC_N + 1] = (c.imu.accel_noise_m_s2, c.imu.gyro_noise_rad_s, c.imu.accel_bias_walk_m_s2_sqrt_s
+                                      * sq, c.imu.gyro_bias_walk_rad_s_sqrt_s * sq, c.esc.noise_rad_s)  # fmt: skip
+    g = c.gnss
+    cfg[sk.C_GNSS_H:sk.C_GNSS_SATS + 1] = (g.pos_noise_h_m, g.pos_noise_v_m, g.vel_noise_m_s, g.latency_s, g.satellites)
+    cfg[sk.C_BARO_N:sk.C_TEMP_SEA + 1] = (c.baro.noise_pa, c.temperature.noise_c, c.temperature.sea_level_c)
+    cfg[sk.C_HOME_LAT:sk.C_HOME_ALT + 1] = (c.home.lat_deg, c.home.lon_deg, c.home.alt_m)
+    cfg[sk.C_MAG_N] = c.mag.noise_gauss
+    cfg[sk.C_MAG_FIELD:sk.C_MAG_FIELD + 3] = c.mag.field_ned_gauss
+    return cfg
+
+
 class SensorSuite:
-    """All sensors of the vehicle with their own random streams (spawned from one seed)."""
+    """All sensors of the vehicle with their own random streams (spawned from one seed), sampled by the compiled
+    kernels of :mod:`sitl.world.sensor_kernel` into logs of rows, kept until :meth:`drain`.
 
-    def __init__(self, config: SensorSuiteConfig, seed: np.random.SeedSequence) -> None:
+    Args:
+        config: noise levels, rates, latency, home; ``config`` may be replaced in flight (the kernels read it packed).
+        seed: the sensors' seed sequence (IMU, ESC, GNSS, baro, magnetometer streams, in that order).
+        n_rotors: rotor speeds per ESC sample; batch_rows: the most IMU samples one :meth:`imu_batch` measures.
+        maxlen: samples kept per sensor between two drains (the oldest are dropped).
+    """
+
+    def __init__(self, config: SensorSuiteConfig, seed: np.random.SeedSequence, n_rotors: int = 4,
+                 batch_rows: int = 16, maxlen: int = 100_000) -> None:  # fmt: skip
         self.config = config
-        s_imu, s_esc, s_gnss, s_baro, s_mag = seed.spawn(5)
-        self._rng_imu = np.random.default_rng(s_imu)
-        self._rng_esc = np.random.default_rng(s_esc)
-        self._rng_gnss = np.random.default_rng(s_gnss)
-        self._rng_baro = np.random.default_rng(s_baro)
-        self._rng_mag = np.random.default_rng(s_mag)
+        rngs = [np.random.default_rng(s) for s in seed.spawn(5)]
         c = config.imu
-        self.accel_bias = self._rng_imu.normal(0.0, c.accel_bias_init_m_s2, 3)
-        self.gyro_bias = self._rng_imu.normal(0.0, c.gyro_bias_init_rad_s, 3)
-        self._gnss_queue: list[GnssSample] = []
-        self._imu_buf, self._imu_next = np.empty((0, 12)), 0
+        self.accel_bias = rngs[0].normal(0.0, c.accel_bias_init_m_s2, 3)
+        self.gyro_bias = rngs[0].normal(0.0, c.gyro_bias_init_rad_s, 3)
+        self.n_rotors, self.maxlen = n_rotors, maxlen
+        self._rngs = rngs
+        self._nz = np.empty((sk.N_STREAMS, NORMALS_AHEAD))  # each stream's next normals, drawn ahead
+        self._nat = np.full(sk.N_STREAMS, NORMALS_AHEAD, dtype=np.int64)  # the next unread normal of each stream
+        for s in range(sk.N_STREAMS):
+            self._refill(s)
+        # Normals and free log rows one call may use: IMU and ESC per batch, one GNSS fix, baro and mag sample.
+        self._need = np.array([12 * batch_rows, n_rotors * batch_rows, 6, 2, 3, batch_rows, batch_rows, 1, 1, 1],
+                              dtype=np.int64)  # fmt: skip
+        widths = (sk.IMU_COLS, 1 + n_rotors, sk.GNSS_COLS, sk.BARO_COLS, sk.MAG_COLS)
+        self._logs = [np.zeros((max(256, 4 * batch_rows), w)) for w in widths]
+        self._cap = np.array([b.shape[0] for b in self._logs], dtype=np.int64)
+        self._cnt = np.zeros(sk.N_STREAMS + 1, dtype=np.int64)  # rows per log, then the GNSS fixes delivered
+        self._imu_fn: Callable[..., int] | None = None  # the compiled kernels (see sitl.world.kernel.compiled_entry)
+        self._slow_fn: Callable[..., int] | None = None
 
-    def imu(self, truth_f: np.ndarray, truth_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measure a batch of K IMU samples from true specific force and rates (K,3 each)."""
-        c = self.config.imu
-        k = truth_f.shape[0]
-        sq = math.sqrt(1.0 / c.rate_hz)
-        acc, gyr = np.empty((k, 3)), np.empty((k, 3))
-        _imu_kernel(truth_f, truth_w, self._imu_normals(k), self.accel_bias, self.gyro_bias,
-                    c.accel_noise_m_s2, c.gyro_noise_rad_s, c.accel_bias_walk_m_s2_sqrt_s * sq,
-                    c.gyro_bias_walk_rad_s_sqrt_s * sq, acc, gyr)  # fmt: skip
-        return acc, gyr
+    @property
+    def config(self) -> SensorSuiteConfig:
+        return self._config
 
-    def _imu_normals(self, k: int) -> np.ndarray:
-        """The next ``k`` rows of 12 standard normals of the IMU's stream (white accel, white gyro,
-        accel bias walk, gyro bias walk), drawn ``IMU_NOISE_BLOCK`` rows at a time: numpy's
-        Generator fills an array in order, so the values are those of drawing row by row."""
-        buf, i = self._imu_buf, self._imu_next
-        if i + k <= buf.shape[0]:
-            self._imu_next = i + k
-            return buf[i : i + k]
-        rest = buf[i:]
-        self._imu_buf = self._rng_imu.standard_normal((max(IMU_NOISE_BLOCK, k - rest.shape[0]), 12))
-        self._imu_next = k - rest.shape[0]
-        return np.concatenate((rest, self._imu_buf[: self._imu_next]))
+    @config.setter
+    def config(self, value: SensorSuiteConfig) -> None:
+        self._config = value
+        self._packed = pack_config(value)
 
-    def esc(self, truth_rotor: np.ndarray) -> np.ndarray:
-        """Measured rotor speeds (K,4) rad/s, never negative."""
-        n = self._rng_esc.standard_normal(truth_rotor.shape)
-        return np.maximum(truth_rotor + self.config.esc.noise_rad_s * n, 0.0)
+    def _refill(self, s: int) -> None:
+        """Stream ``s``'s unread normals moved to the front, the rest of its row drawn from its generator."""
+        row, a = self._nz[s], int(self._nat[s])
+        rest = row.shape[0] - a
+        row[:rest] = row[a:].copy()
+        self._rngs[s].standard_normal(out=row[rest:])
+        self._nat[s] = 0
 
-    def gnss_measure(self, t: float, pos: np.ndarray, vel: np.ndarray) -> None:
-        """Take a fix of the true state at time t; it is delivered after the latency."""
-        c = self.config.gnss
-        n = self._rng_gnss.standard_normal(6)
-        p = pos + n[:3] * np.array([c.pos_noise_h_m, c.pos_noise_h_m, c.pos_noise_v_m])
-        v = vel + n[3:] * c.vel_noise_m_s
-        lat, lon, alt = ned_to_geodetic(p, self.config.home)
-        self._gnss_queue.append(GnssSample(t, p, v, lat, lon, alt, c.satellites))
+    def _make_room(self, low: int) -> None:
+        """After a kernel said a stream or a log runs low (bits, see ``sensor_kernel._low``): refill, trim, grow."""
+        for s in range(sk.N_STREAMS):
+            if low & (1 << s):
+                self._refill(s)
+            if low & (1 << (8 + s)):
+                log, n = self._logs[s], int(self._cnt[s])
+                done = int(self._cnt[sk.K_GNSS_DELIVERED]) if s == sk.S_GNSS else n  # pending fixes are kept
+                drop = max(0, done - self.maxlen)
+                if n - drop + self._need[sk.N_STREAMS + s] > log.shape[0] // 2:
+                    grown = np.zeros((2 * log.shape[0], log.shape[1]))
+                    grown[: n - drop] = log[drop:n]
+                    self._logs[s] = grown
+                else:
+                    log[: n - drop] = log[drop:n].copy()
+                self._cnt[s] = n - drop
+                if s == sk.S_GNSS:
+                    self._cnt[sk.K_GNSS_DELIVERED] = done - drop
+                self._cap[s] = self._logs[s].shape[0]
 
-    def gnss_deliver(self, now: float) -> list[GnssSample]:
-        """Fixes whose latency has elapsed at time ``now``."""
-        lat = self.config.gnss.latency_s
-        out = [s for s in self._gnss_queue if s.t + lat <= now + 1e-9]
-        if out:
-            self._gnss_queue = self._gnss_queue[len(out):]
+    def imu_batch(self, rows: np.ndarray, nrow: int, esc_first: int, esc_every: int) -> None:
+        """IMU samples of truth rows ``rows[:nrow]`` (see :mod:`sitl.world.kernel`), ESC samples of every
+        ``esc_every``-th of them from ``esc_first``."""
+        args = (rows, nrow, self.n_rotors, esc_first, esc_every, self._packed, self.accel_bias, self.gyro_bias,
+                self._nz, self._nat, self._logs[0], self._logs[1], self._cnt, self._need, self._cap)
+        if self._imu_fn is None:  # the argument types never change: the compiled function looked up once
+            self._imu_fn = compiled_entry(sk.imu_period, args)
+        low = self._imu_fn(*args)
+        if low:
+            self._make_room(low)
+
+    def slow_tick(self, t: float, x: np.ndarray, due: int) -> None:
+        """GNSS fix, baro and magnetometer samples at time ``t`` [s] on state ``x`` as ``due`` says
+        (``sensor_kernel.DUE_*``); GNSS fixes whose latency has elapsed delivered."""
+        args = (float(t), x, due, self._packed, self._nz, self._nat, self._logs[2], self._logs[3], self._logs[4],
+                self._cnt, self._need, self._cap)
+        if self._slow_fn is None:
+            self._slow_fn = compiled_entry(sk.slow_sensors, args)
+        low = self._slow_fn(*args)
+        if low:
+            self._make_room(low)
+
+    def _take(self, s: int, n: int, done: int) -> np.ndarray:
+        """Log ``s``'s first ``done`` of ``n`` rows (the newest ``maxlen`` of them), the rest (GNSS fixes still
+        pending) moved to the front."""
+        log = self._logs[s]
+        out = log[max(0, done - self.maxlen):done].copy()
+        if n > done:
+            log[: n - done] = log[done:n].copy()
+        self._cnt[s] = n - done
         return out
 
-    def baro(self, t: float, pos: np.ndarray) -> BaroSample:
-        c = self.config
-        alt = c.home.alt_m - float(pos[2])
-        pres = float(isa_pressure_pa(alt)) + c.baro.noise_pa * self._rng_baro.standard_normal()
-        temp = c.temperature.sea_level_c - 0.0065 * alt
-        temp += c.temperature.noise_c * self._rng_baro.standard_normal()
-        return BaroSample(t, pres, isa_altitude_m(pres), temp)
-
-    def mag(self, t: float, dcm_body_to_ned: np.ndarray) -> MagSample:
-        c = self.config.mag
-        f = dcm_body_to_ned.T @ np.asarray(c.field_ned_gauss)
-        return MagSample(t, f + c.noise_gauss * self._rng_mag.standard_normal(3))
-
-
-@njit(cache=True)
-def _imu_kernel(truth_f: np.ndarray, truth_w: np.ndarray, n: np.ndarray, accel_bias: np.ndarray,
-                gyro_bias: np.ndarray, accel_noise: float, gyro_noise: float, accel_walk: float,
-                gyro_walk: float, acc: np.ndarray, gyr: np.ndarray) -> None:  # fmt: skip
-    """K IMU samples (rows of ``acc``, ``gyr``): the truth plus the bias, which walks by ``*_walk`` x
-    a normal per sample (the biases are updated in place), plus white noise; ``n`` (K,12) holds the
-    normals. The sums are formed in numpy's order (a running sum of the walk steps added to the bias,
-    then truth + bias + noise), so the samples are bit for bit those of the vectorized model."""
-    ca, cg = np.zeros(3), np.zeros(3)
-    a0, g0 = accel_bias.copy(), gyro_bias.copy()
-    for i in range(n.shape[0]):
-        for j in range(3):
-            ca[j] += n[i, 6 + j] * accel_walk
-            cg[j] += n[i, 9 + j] * gyro_walk
-            ab, gb = a0[j] + ca[j], g0[j] + cg[j]
-            acc[i, j] = truth_f[i, j] + ab + accel_noise * n[i, j]
-            gyr[i, j] = truth_w[i, j] + gb + gyro_noise * n[i, 3 + j]
-            accel_bias[j], gyro_bias[j] = ab, gb
+    def drain(self) -> dict[str, list[Any]]:
+        """All samples since the previous drain, by sensor, oldest first: ``imu`` (t, accel FRD (3,), gyro FRD (3,)),
+        ``esc`` (t, rotor speeds (N,)), ``gnss`` :class:`GnssSample`, ``baro`` :class:`BaroSample`, ``mag``
+        :class:`MagSample`. (A lockstep bridge drains every few ticks: an empty log costs a comparison.)"""
+        n_imu, n_esc, n_gnss, n_baro, n_mag, n_fix = self._cnt.tolist()
+        out: dict[str, list[Any]] = {"imu": [], "esc": [], "gnss": [], "baro": [], "mag": []}
+        if n_imu:  # (few samples: views of each row; many: of the columns, copied once)
+            r = self._take(sk.S_IMU, n_imu, n_imu)
+            out["imu"] = ([(v[0], row[1:4], row[4:7]) for v, row in zip(r.tolist(), r, strict=True)] if n_imu <= 16
+                          else list(zip(r[:, 0].tolist(), r[:, 1:4].copy(), r[:, 4:7].copy(), strict=True)))
+        if n_esc:
+            r = self._take(sk.S_ESC, n_esc, n_esc)
+            out["esc"] = ([(v[0], row[1:]) for v, row in zip(r.tolist(), r, strict=True)] if n_esc <= 16
+                          else list(zip(r[:, 0].tolist(), r[:, 1:].copy(), strict=True)))
+        if n_fix:
+            r = self._take(sk.S_GNSS, n_gnss, n_fix)
+            self._cnt[sk.K_GNSS_DELIVERED] = 0
+            sats = int if isinstance(self.config.gnss.satellites, int) else float
+            out["gnss"] = [GnssSample(v[0], g[1:4].copy(), g[4:7].copy(), v[7], v[8], v[9], sats(v[10]))
+                           for v, g in zip(r.tolist(), r, strict=True)]  # fmt: skip
+        if n_baro:
+            out["baro"] = [BaroSample(*v) for v in self._take(sk.S_BARO, n_baro, n_baro).tolist()]
+        if n_mag:
+            r = self._take(sk.S_MAG, n_mag, n_mag)
+            out["mag"] = [MagSample(v[0], m[1:4].copy()) for v, m in zip(r.tolist(), r, strict=True)]
+        return out

@@ -12,9 +12,9 @@ rows). It has no autopilot inside. Something that produces rotor commands is a :
 Timing: physics runs at ``scenario.physics_rate_hz`` (500 Hz by default, RK4). At every slow tick
 (``scenario.mode_rate_hz``, 50 Hz) the pilot's slow logic runs first, then the low-rate sensors
 (GNSS, barometer, magnetometer) and the plume and chemical sensor; the IMU and ESC samples come
-from the truth rows the physics loop writes at the IMU rate, turned into measurements in
-vectorized batches. Same scenario, seed and commands give the same trajectory bit for bit,
-however the steps are grouped.
+from the truth rows the physics loop writes at the IMU rate, turned into measurements in one
+compiled call per control period (:mod:`sitl.world.sensor_kernel`). Same scenario, seed and
+commands give the same trajectory bit for bit, however the steps are grouped.
 
 Seeding: ``SeedSequence(seed).spawn(3)`` = (wind, sensors, extra); the plume is spawned from
 ``extra``. Units SI; NED world, FRD body; wind = air-mass velocity NED.
@@ -23,9 +23,8 @@ Seeding: ``SeedSequence(seed).spawn(3)`` = (wind, sensors, extra); the plume is 
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -37,40 +36,22 @@ from sitl.world.kernel import (
     FLAG_ON_GROUND,
     N_TRUTH,
     NO_OBSTACLES,
-    T_RATES,
-    T_ROTORS,
-    T_SPECIFIC_FORCE,
     T_WIND,
     Obstacles,
     advance_commanded,
 )
 from sitl.world.plume.part import CHEM_OUTPUT, PlumePart
-from sitl.world.sensors import BaroSample, GnssSample, MagSample, SensorSuite
+from sitl.world.sensor_kernel import DUE_BARO, DUE_GNSS, DUE_MAG
+from sitl.world.sensors import SensorSuite
 from sitl.world.spec import WorldSpec
 from sitl.world.wind.kernel import WindKernel
 from sitl.world.wind.model import WindModel, make_wind
-from vehicle.frames import euler_to_quat, quat_to_dcm, tilt_angle
+from vehicle.frames import euler_to_quat, tilt_angle
 from vehicle.params import MAX_ROTORS, VehicleParams
 from vehicle.vehicle_file import load_vehicle
 
 #: Sensor samples kept between two ``drain()`` calls, per sensor (the oldest are dropped).
 SENSOR_QUEUE_MAXLEN = 100_000
-
-
-@dataclass
-class SensorOutputs:
-    """Sensor samples since the last :meth:`World.drain` (bounded queues, oldest dropped)."""
-
-    maxlen: int = SENSOR_QUEUE_MAXLEN
-    imu: deque[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=deque)  # (t, accel FRD, gyro FRD)
-    esc: deque[tuple[float, np.ndarray]] = field(default_factory=deque)  # (t, rotor speeds rad/s (N,))
-    gnss: deque[GnssSample] = field(default_factory=deque)
-    baro: deque[BaroSample] = field(default_factory=deque)
-    mag: deque[MagSample] = field(default_factory=deque)
-
-    def __post_init__(self) -> None:
-        for name in ("imu", "esc", "gnss", "baro", "mag"):
-            setattr(self, name, deque(maxlen=self.maxlen))
 
 
 @dataclass
@@ -173,8 +154,10 @@ class World:
         self._python_wind = kernel is None
         # A model without a numba fast path is sampled in Python once per tick into this held kernel.
         self.wind_kernel: WindKernel = kernel if kernel is not None else _held_wind_kernel()
-        self.sensors = SensorSuite(sc, s_sensors)
-        self.outputs = SensorOutputs()
+        batch_rows = self.slow_div // imu_div + 2  # truth rows (IMU samples) of one control period, at most
+        self.sensors = SensorSuite(sc, s_sensors, self.vehicle.n_rotors, batch_rows, SENSOR_QUEUE_MAXLEN)
+        self._due = [(div, bit) for div, bit in ((self.gnss_div, DUE_GNSS), (self.baro_div, DUE_BARO),
+                                                  (self.mag_div, DUE_MAG))]  # fmt: skip
         x = np.zeros(N_STATE)
         st = scenario.start
         x[0:3] = st.position_ned
@@ -183,7 +166,7 @@ class World:
         flags[FLAG_ON_GROUND] = 0.0 if st.airborne else 1.0
         self.phys = PhysicsArrays(x=x, flags=flags, params=self.vehicle.as_array(),
                                   crash_speed=float(self.vehicle.crash_speed_m_s),
-                                  rows=np.zeros((self.slow_div // imu_div + 2, N_TRUTH)), fb=np.zeros(3),
+                                  rows=np.zeros((batch_rows, N_TRUTH)), fb=np.zeros(3),
                                   imu_div=imu_div, dt=dt, obstacles=_obstacles(scenario))  # fmt: skip
         self._imu_count = 0
         self.last_truth = np.zeros(N_TRUTH)
@@ -295,7 +278,7 @@ class World:
             k = min(n, self.slow_div - tick % self.slow_div)
             nrow = self._advance(pilot, k)
             if nrow:
-                self._imu_batch(self.phys.rows[:nrow])
+                self._imu_batch(nrow)
             self.tick += k
             n -= k
 
@@ -316,47 +299,31 @@ class World:
         return nrow
 
     def _slow_tick(self) -> None:
-        t = self.t
-        x = self.phys.x
         tick = self.tick
-        out = self.outputs
-        if tick % self.gnss_div == 0:
-            self.sensors.gnss_measure(t, x[0:3], x[3:6])
-        for s in self.sensors.gnss_deliver(t):
-            out.gnss.append(s)
-        if tick % self.baro_div == 0:
-            out.baro.append(self.sensors.baro(t, x[0:3]))
-        if tick % self.mag_div == 0:
-            out.mag.append(self.sensors.mag(t, quat_to_dcm(x[6:10])))
+        due = 0
+        for div, bit in self._due:
+            if tick % div == 0:
+                due |= bit
+        x = self.phys.x
+        self.sensors.slow_tick(self.t, x, due)
         if self.plume is not None:
-            self.plume.on_slow_tick(tick // self.slow_div, t, x[0:3])
+            self.plume.on_slow_tick(tick // self.slow_div, self.t, x[0:3])
 
-    def _imu_batch(self, rows: np.ndarray) -> None:
-        acc, gyr = self.sensors.imu(rows[:, T_SPECIFIC_FORCE], rows[:, T_RATES])
-        out = self.outputs
-        t = rows[:, 0].tolist()
-        out.imu.extend(zip(t, acc, gyr, strict=True))
-        # the ESC samples: every esc_every-th IMU sample, counted across batches
-        k = rows.shape[0]
-        first = -self._imu_count % self.esc_every
-        if first < k:
-            sel = slice(first, k, self.esc_every)
-            speeds = rows[sel, T_ROTORS][:, : self.vehicle.n_rotors]
-            out.esc.extend(zip(t[sel], self.sensors.esc(speeds), strict=True))
-        self._imu_count += k
-        self.last_truth = rows[-1].copy()
+    def _imu_batch(self, nrow: int) -> None:
+        """The IMU samples of the first ``nrow`` truth rows and the ESC samples among them (every
+        ``esc_every``-th IMU sample, counted across batches)."""
+        rows = self.phys.rows
+        self.sensors.imu_batch(rows, nrow, -self._imu_count % self.esc_every, self.esc_every)
+        self._imu_count += nrow
+        self.last_truth = rows[nrow - 1].copy()
         if self.truth_log is not None:
-            self.truth_log.append(rows.copy())
+            self.truth_log.append(rows[:nrow].copy())
 
     # ------------------------------------------------------------------ outputs
     def drain(self) -> dict[str, list[Any]]:
         """All sensor samples since the previous call, by sensor name, oldest first
         (``imu``, ``esc``, ``gnss``, ``baro``, ``mag``, and ``chem`` with a plume)."""
-        out: dict[str, list[Any]] = {}
-        for name in ("imu", "esc", "gnss", "baro", "mag"):
-            q = getattr(self.outputs, name)
-            out[name] = list(q)
-            q.clear()
+        out = self.sensors.drain()
         if self.plume is not None:
             out[CHEM_OUTPUT] = list(self.plume.readings)
             self.plume.readings.clear()

@@ -7,11 +7,12 @@ release g/s; concentration mg/m^3.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
 
-from sitl.world.kernel import NO_OBSTACLES, Obstacles
+from sitl.world.kernel import NO_OBSTACLES, Obstacles, compiled_entry
 from sitl.world.plume.config import G_TO_MG, TWO_PI_POW_1_5, PlumeConfig, WindLike, check_config
 from sitl.world.plume.gaussian import BRIGGS_Y, BRIGGS_Z, GaussianPlume, concentration_slice
 from sitl.world.plume.meander import (
@@ -20,9 +21,10 @@ from sitl.world.plume.meander import (
     MeanderField,
     axis_calibration,
     frozen_turbulence_variances,
-    meander_at,
 )
 from sitl.world.plume.store import PuffStore
+from sitl.world.plume.substep import NormalBlock, advance_puffs, physical_positions, puff_substep
+from sitl.world.wind.kernel import wind_mean
 from urbanflow.geometry import building_at, reflect_point
 
 # ---------------------------------------------------------------------------------- kernels
@@ -50,55 +52,6 @@ def _reflect_puffs(
         if rx != px or ry != py or rh != ph:
             pos[k, 0], pos[k, 1], pos[k, 2] = rx, ry, rh
     return moved
-
-
-@njit(cache=True)
-def _physical(pos: np.ndarray, out: np.ndarray) -> None:
-    """Physical NED positions (K, 3) m of puffs ``pos`` (x, y NED, unfolded altitude up) into ``out``."""
-    for i in range(pos.shape[0]):
-        out[i, 0] = pos[i, 0]
-        out[i, 1] = pos[i, 1]
-        out[i, 2] = -abs(pos[i, 2])
-
-
-@njit(cache=True)
-def _advance_puffs(
-    pos: np.ndarray,
-    r2: np.ndarray,
-    unit: np.ndarray,
-    serial: np.ndarray,
-    n_groups: int,
-    group: int,
-    vel: np.ndarray,
-    noise: np.ndarray,
-    s_xy: float,
-    s_z: float,
-    w_xy: float,
-    w_z: float,
-    growth: float,
-    h: float,
-    offset: np.ndarray,
-    k: np.ndarray,
-    phase: np.ndarray,
-    amp: np.ndarray,
-) -> None:
-    """One puff substep of ``h`` [s], in place.
-
-    pos (K,3): x, y NED and unfolded altitude (up) [m]; r2 (K,) [m^2]; unit (K,3): cached
-    unit meander, re-sampled at the pre-step position for the puffs whose ``serial`` (K,) falls in
-    ``group`` (serial mod ``n_groups``) or whose cache is NaN; vel (K,3): wind NED [m/s] at the
-    physical puff positions; noise (K,3): standard normals; s_xy, s_z: meander sigma, horizontal
-    and vertical [m/s]; w_xy, w_z: random-walk step standard deviation [m]; growth: r^2 growth
-    rate [m^2/s]; offset/k/phase/amp: meander."""
-    n = pos.shape[0]
-    for i in range(n):
-        if serial[i] % n_groups == group or math.isnan(unit[i, 0]):
-            meander_at(pos[i, 0], pos[i, 1], offset, k, phase, amp, unit[i])
-        # Vertical in the unfolded coordinate: NED velocity is down, altitude is up.
-        pos[i, 0] += (vel[i, 0] + unit[i, 0] * s_xy) * h + noise[i, 0] * w_xy
-        pos[i, 1] += (vel[i, 1] + unit[i, 1] * s_xy) * h + noise[i, 1] * w_xy
-        pos[i, 2] += (-vel[i, 2] + unit[i, 2] * s_z) * h + noise[i, 2] * w_z
-        r2[i] += growth * h
 
 
 #: Query points from which :func:`_puff_concentration` first culls the puffs against their bounding box.
@@ -156,6 +109,27 @@ def _puff_concentration(pts: np.ndarray, pos: np.ndarray, r2: np.ndarray, mass: 
     return out
 
 
+@njit(cache=True)
+def _puff_concentration_at(px: float, py: float, pz: float, pos: np.ndarray, r2: np.ndarray, mass: np.ndarray) -> float:
+    """:func:`_puff_concentration` at one NED point (px, py, pz) [m] (mg/m^3): the same terms in the same order,
+    without the arrays (the chemical sensor's reading, at the sensor rate)."""
+    zq = -pz
+    acc = 0.0
+    for q in range(pos.shape[0]):
+        inv = -0.5 / r2[q]
+        dx = px - pos[q, 0]
+        dy = py - pos[q, 1]
+        e = (dx * dx + dy * dy) * inv
+        if e < -40.0:
+            continue
+        zp = abs(pos[q, 2])
+        dzm = zq - zp
+        dzp = zq + zp
+        norm = mass[q] * G_TO_MG / (TWO_PI_POW_1_5 * r2[q] * math.sqrt(r2[q]))
+        acc += norm * (math.exp(e + dzm * dzm * inv) + math.exp(e + dzp * dzp * inv))
+    return acc
+
+
 class PuffPlume:
     """Instantaneous puff (filament) plume, Farrell et al. (2002) style.
 
@@ -193,6 +167,7 @@ class PuffPlume:
         self._substep_count = 0
         self._next_serial = 0
         self._src = np.array([s.position_ned for s in config.sources], dtype=float)
+        self._src0 = self._src[0].copy()
         self._puff_mass_g = np.array([s.rate_g_s / config.puff_rate_hz for s in config.sources])
         self._n_released = np.zeros(len(config.sources), dtype=np.int64)
         self._t = float(t0)
@@ -208,7 +183,10 @@ class PuffPlume:
             self._dom_lo = self._dom_hi = None  # no domain: puffs are kept wherever they go
         self._store = PuffStore()  # x, y NED, unfolded altitude (up) [m]; r^2; mass; release time; ...
         self._phys = np.zeros((0, 3))  # the puffs' physical positions at a substep's start (grown as needed)
-        self._noise = np.zeros((0, 3))  # a substep's random-walk normals
+        self._normals = NormalBlock(self._rng)  # the random-walk normals, drawn ahead
+        self._cal_key: tuple[float, float] | None = None
+        self._cal = np.zeros(7)
+        self._substep_fn: Callable[..., None] | None = None
         self.released_mass_g = 0.0
         self.removed_domain_mass_g = 0.0
         self.removed_cap_mass_g = 0.0
@@ -241,7 +219,9 @@ class PuffPlume:
         return self.removed_domain_mass_g + self.removed_cap_mass_g
 
     def _ref_speed(self, t: float) -> tuple[np.ndarray, float]:
-        w = np.asarray(self._wind.mean(t, self._src[0]), dtype=float)
+        wk = self._wind.kernel() if hasattr(self._wind, "kernel") else None
+        # The mean wind at the first source (the field's compiled sampler called directly when it has one).
+        w = wind_mean(float(t), self._src0, wk) if wk is not None else np.asarray(self._wind.mean(t, self._src0), float)
         return w, max(math.hypot(w[0], w[1]), self.config.min_wind_speed_m_s)
 
     # ------------------------------------------------------------------ dynamics
@@ -257,25 +237,34 @@ class PuffPlume:
 
     def _release(self, t: float, h: float) -> None:
         cfg = self.config
-        new_pos, new_t, new_m = [], [], []
+        runs = []
         for i, s in enumerate(cfg.sources):
             if s.rate_g_s <= 0.0:
                 continue
             # Release times start_s + k/puff_rate_hz that fall in [t, t+h) and < stop_s.
             k0 = max(self._n_released[i], math.ceil((t - s.start_s) * cfg.puff_rate_hz - 1e-9))
             k1 = math.ceil((min(t + h, s.stop_s) - s.start_s) * cfg.puff_rate_hz - 1e-9)
-            if k1 <= k0:
-                continue
-            n = k1 - k0
-            self._n_released[i] = k1
-            p = np.empty((n, 3))
+            if k1 > k0:
+                self._n_released[i] = k1
+                runs.append((i, s.start_s, k0, k1))
+        if not runs:
+            return
+        i, start, k0, k1 = runs[0]
+        if len(runs) == 1 and k1 - k0 == 1:  # one puff (the usual substep): its values written as they are
+            self.released_mass_g += float(self._puff_mass_g[i])
+            src = self._src[i]
+            self._store.append_one(src[0], src[1], -src[2], start + k0 / cfg.puff_rate_hz, self._puff_mass_g[i],
+                                   cfg.source_radius_m**2, self._next_serial)  # fmt: skip
+            self._next_serial += 1
+            return
+        new_pos, new_t, new_m = [], [], []
+        for i, start, k0, k1 in runs:
+            p = np.empty((k1 - k0, 3))
             p[:, :2] = self._src[i, :2]
             p[:, 2] = -self._src[i, 2]
             new_pos.append(p)
-            new_t.append(s.start_s + np.arange(k0, k1) / cfg.puff_rate_hz)
-            new_m.append(np.full(n, self._puff_mass_g[i]))
-        if not new_pos:
-            return
+            new_t.append(start + np.arange(k0, k1) / cfg.puff_rate_hz)
+            new_m.append(np.full(k1 - k0, self._puff_mass_g[i]))
         m = np.concatenate(new_m) if len(new_m) > 1 else new_m[0]
         self.released_mass_g += float(m.sum())
         # New puffs get their meander sample in this substep's refresh (see _substep).
@@ -284,37 +273,67 @@ class PuffPlume:
                            self._next_serial)  # fmt: skip
         self._next_serial += len(m)
 
-    def _substep(self, t: float, h: float) -> None:
-        self._release(t, h)
-        w_ref, u = self._ref_speed(t)
-        cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
-        cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
-        st = self._store
-        k = len(st)
-        if k:
-            # The meander is smooth and nearly frozen in the frame the puffs ride in, so
-            # a puff's sample changes slowly: refresh each puff every MEANDER_REFRESH_S, a
-            # 1/n_groups share of them per substep, by serial number. (New puffs have a NaN cache
-            # and are sampled in the same pass.)
-            if self._phys.shape[0] < k:
-                self._phys, self._noise = np.zeros((2 * k, 3)), np.zeros((2 * k, 3))
-            phys = self._phys[:k]  # physical positions at the start of the step
-            _physical(st.pos, phys)
-            vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
+    def _calibration(self, u: float, h: float) -> np.ndarray:
+        """The substep's dispersion parameters at reference speed ``u`` [m/s] over ``h`` [s] (see
+        :func:`sitl.world.plume.substep.puff_substep`), kept while ``u`` and ``h`` stay the same."""
+        if self._cal_key != (u, h):
+            cal_y = axis_calibration(self._cy, u, self._frozen_var[0])
+            cal_z = axis_calibration(self._cz, u, self._frozen_var[1])
             growth = PUFF_GROWTH_SHARE * min(cal_y.small_scale_rate, cal_z.small_scale_rate)
             walk_y = math.sqrt(max(cal_y.small_scale_rate - growth, 0.0) * h)
             walk_z = math.sqrt(max(cal_z.small_scale_rate - growth, 0.0) * h)
-            noise = self._rng.standard_normal((k, 3), out=self._noise[:k])
+            self._cal = np.array([cal_y.meander_sigma, cal_z.meander_sigma, walk_y, walk_z, growth,
+                                  cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time])  # fmt: skip
+            self._cal_key = (u, h)
+        return self._cal
+
+    def _substep(self, t: float, h: float) -> None:
+        self._release(t, h)
+        w_ref, u = self._ref_speed(t)
+        cal = self._calibration(u, h)
+        st = self._store
+        k = len(st)
+        wk = self._wind.kernel() if hasattr(self._wind, "kernel") else None
+        if wk is None:
+            self._substep_python(t, h, w_ref, cal)
+        else:
+            # The meander is smooth and nearly frozen in the frame the puffs ride in, so a puff's sample changes
+            # slowly: each puff re-samples it every MEANDER_REFRESH_S, a 1/n_groups share of the puffs per substep,
+            # by serial number (new puffs have a NaN cache and are sampled in the same pass).
+            if self._phys.shape[0] < k:
+                self._phys = np.zeros((2 * k, 3))
+            self._normals.ensure(3 * k)
             mf = self._meander
-            _advance_puffs(
-                st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups, vel, noise,
-                cal_y.meander_sigma, cal_z.meander_sigma, walk_y, walk_z, growth, h, mf.offset, mf.k, mf.phase, mf.amp,
-            )  # fmt: skip
+            args = (float(t), float(h), st.pos, st.r2, st.unit, st.serial, self._n_groups,
+                    self._substep_count % self._n_groups, self._phys, self._normals.nz, self._normals.nat, cal, w_ref,
+                    mf.offset, mf.k, mf.phase, mf.amp, mf.omega_hat, mf.vertical, wk)  # fmt: skip
+            if self._substep_fn is None:  # fixed argument types: the compiled function looked up once
+                self._substep_fn = compiled_entry(puff_substep, args)
+            self._substep_fn(*args)
+        if k:
             if self._obstacles.heights.shape[0]:
-                self._reflect(phys)
+                self._reflect(self._phys[:k])
             self._remove()
-        self._meander.advance(w_ref[:2], cal_y.inv_lagrangian_time, cal_z.inv_lagrangian_time, h)
         self._substep_count += 1
+
+    def _substep_python(self, t: float, h: float, w_ref: np.ndarray, cal: np.ndarray) -> None:
+        """:func:`puff_substep` for a wind model without a compiled kernel (sampled through ``velocity``)."""
+        st = self._store
+        k = len(st)
+        if k:
+            if self._phys.shape[0] < k:
+                self._phys = np.zeros((2 * k, 3))
+            phys = self._phys[:k]
+            physical_positions(st.pos, phys)
+            vel = np.ascontiguousarray(self._wind.velocity(t, phys), dtype=float).reshape(k, 3)
+            self._normals.ensure(3 * k)
+            a = int(self._normals.nat[0])
+            noise = self._normals.nz[a:a + 3 * k].reshape(k, 3)
+            self._normals.nat[0] = a + 3 * k
+            mf = self._meander
+            advance_puffs(st.pos, st.r2, st.unit, st.serial, self._n_groups, self._substep_count % self._n_groups,
+                          vel, noise, cal[0], cal[1], cal[2], cal[3], cal[4], h, mf.offset, mf.k, mf.phase, mf.amp)
+        self._meander.advance(w_ref[:2], cal[5], cal[6], h)
 
     def _reflect(self, before: np.ndarray) -> None:
         """Puffs whose step ended inside a building mirrored out of it (off the wall or roof they
@@ -331,17 +350,19 @@ class PuffPlume:
                 st.keep(inside)
         excess = len(st) - self.config.max_puffs
         if excess > 0:
-            # Puffs are stored in release order, so the first ones are the oldest.
-            self.removed_cap_mass_g += float(st.mass[:excess].sum())
+            # Puffs are stored in release order, so the first ones are the oldest (one: the sum is its mass).
+            self.removed_cap_mass_g += float(st.mass[0] if excess == 1 else st.mass[:excess].sum())
             st.drop_oldest(excess)
 
     # ------------------------------------------------------------------ output
     def concentration(self, points: np.ndarray) -> np.ndarray | float:
         """Concentration [mg/m^3] at (N,3) NED points -> (N,), or (3,) -> float."""
+        st = self._store
+        if isinstance(points, np.ndarray) and points.shape == (3,) and points.dtype == np.float64:
+            return _puff_concentration_at(points[0], points[1], points[2], st.pos, st.r2, st.mass)
         pts = np.asarray(points, dtype=float)
         single = pts.ndim == 1
         pts = np.atleast_2d(pts)
-        st = self._store
         out = _puff_concentration(np.ascontiguousarray(pts), st.pos, st.r2, st.mass)
         return float(out[0]) if single else out
 

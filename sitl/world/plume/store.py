@@ -68,6 +68,22 @@ class PuffStore:
         self._hi = b
         self._views()
 
+    def append_one(self, x: float, y: float, alt: float, t_rel: float, mass: float, r2: float, serial: int) -> None:
+        """Add one puff (see :meth:`append`): position x, y NED and unfolded altitude [m], release time [s],
+        mass [g], variance [m^2], serial."""
+        self._room(1)
+        a = self._hi
+        bufs = self._bufs
+        p = bufs["pos"][a]
+        p[0], p[1], p[2] = x, y, alt
+        bufs["t_rel"][a] = t_rel
+        bufs["mass"][a] = mass
+        bufs["r2"][a] = r2
+        bufs["serial"][a] = serial
+        bufs["unit"][a] = np.nan
+        self._hi = a + 1
+        self._views()
+
     def drop_oldest(self, n: int) -> None:
         """Remove the ``n`` oldest puffs (the first ``n``: they are stored in release order)."""
         self._lo += min(n, len(self))
