@@ -9,20 +9,12 @@ system 7 is there, restart at the reboot and go on publishing WIND_COV on the ne
 from __future__ import annotations
 
 import json
-import signal
-import socket
-import subprocess
-import sys
-import threading
-import time
-from pathlib import Path
 
+from estimator_process import run_estimator
 from estimator_stream import autopilot_messages, record
-from link_support import free_port
 
 from wire.dialect import mavlink
 
-ROOT = Path(__file__).resolve().parent.parent
 SPEED = 5.0  # simulated seconds per wall second
 
 
@@ -33,49 +25,12 @@ def test_estimator_locks_on_and_restarts_after_a_reboot_over_udp() -> None:
     after = [(t, 1, m) for t, m in autopilot_messages(f, t_offset=-11.5) if t >= 12.0]
     seven = [(t, 7, m) for t, m in autopilot_messages(other, t_offset=500.0) if t < 20.0 and int(t * 250) % 5 == 0]
     plan = sorted(before + after + seven, key=lambda x: x[0])
-    port = free_port()
-    est = subprocess.Popen(
-        [sys.executable, "-m", "windseek.cli", "estimator", "--connect", f"udpin://127.0.0.1:{port}",
-         "--json", "--progress-every", "0", "--link-timeout", "5", "--duration", "60"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(est.stderr.readline, "")), daemon=True)
-    reader.start()
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.setblocking(False)
     tx = {s: mavlink.MAVLink(None, srcSystem=s, srcComponent=1) for s in (1, 7)}
     rx = mavlink.MAVLink(None)
     got = []
-
-    def drain() -> None:
-        while True:
-            try:
-                data = sock.recv(65536)
-            except BlockingIOError:
-                return
-            got.extend(rx.parse_buffer(data) or [])
-
-    try:
-        end = time.monotonic() + 120.0  # it imports and loads its compiled kernels first
-        while not any("connecting on" in x for x in lines) and est.poll() is None and time.monotonic() < end:
-            time.sleep(0.05)
-        assert any("connecting on" in x for x in lines), lines
-        wall0 = time.monotonic()
-        for t, sysid, m in plan:
-            while time.monotonic() - wall0 < t / SPEED:
-                drain()
-                time.sleep(0.002)
-            sock.sendto(m.pack(tx[sysid]), ("127.0.0.1", port))
-        time.sleep(1.0)
-        drain()
-    finally:
-        est.send_signal(signal.SIGTERM)
-        out = est.stdout.read() if est.wait(timeout=30) is not None else ""
-        reader.join(5.0)
-        err = "".join(lines)
-        sock.close()
-    assert est.returncode == 0, err
+    code, out, err = run_estimator([(t, m.pack(tx[sysid])) for t, sysid, m in plan], SPEED,
+                                   lambda data, reply: got.extend(rx.parse_buffer(data) or []))
+    assert code == 0, err
     s = json.loads(out)
     assert s["autopilot"] == "1:1" and s["stop_reason"] == "SIGTERM"
     assert s["counters"]["other_system"] > 1000 and s["counters"]["clock_resets"] == 1 and s["restarts"] == 1

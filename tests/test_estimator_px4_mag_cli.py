@@ -12,24 +12,17 @@ SCALED_IMU, take it as its IMU input and find the whole 12 deg.
 from __future__ import annotations
 
 import json
-import signal
-import socket
-import subprocess
-import sys
-import threading
-import time
-from pathlib import Path
+from collections.abc import Callable
 
 import pytest
+from estimator_process import run_estimator
 from estimator_stream import record
-from link_support import free_port
 from px4_mag_stream import PX4_CAL, px4_params, px4_stream
 
 from estimator import px4_mag
 from wire import param_codec
 from wire.dialect import mavlink
 
-ROOT = Path(__file__).resolve().parent.parent
 SPEED = 4.0  # simulated seconds per wall second
 INT32_NAMES = {"SENS_BOARD_ROT"} | {f"CAL_MAG{i}_{f}" for i in range(4) for f in ("ID", "PRIO", "ROT")}
 
@@ -41,63 +34,28 @@ def test_the_estimator_redoes_px4s_compass_calibration_on_the_raw_field(rates: s
     cal = px4_mag.from_params(params)
     assert isinstance(cal, px4_mag.Px4MagCalibration)
     plan = px4_stream(record(20.0), cal, err_deg=12.0, hidden_deg=8.0)
-    port = free_port()
-    est = subprocess.Popen(
-        [sys.executable, "-m", "windseek.cli", "estimator", "--connect", f"udpin://127.0.0.1:{port}",
-         "--json", "--progress-every", "0", "--link-timeout", "5", "--duration", "60", "--request-rates", rates],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)  # fmt: skip
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(est.stderr.readline, "")), daemon=True)
-    reader.start()
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.setblocking(False)
     tx, rx = mavlink.MAVLink(None, srcSystem=1, srcComponent=1), mavlink.MAVLink(None)
     asked: list[str] = []
     intervals: list[tuple[int, float]] = []
     dropped = {"CAL_MAG0_ID", "SENS_BOARD_ROT", "CAL_MAG0_XODIAG"}  # the first request of each goes unanswered
 
-    def serve() -> None:
-        while True:
-            try:
-                data, peer = sock.recvfrom(65536)
-            except BlockingIOError:
-                return
-            for m in rx.parse_buffer(data) or []:
-                if m.get_type() == "COMMAND_LONG" and int(m.command) == 511:
-                    intervals.append((int(m.param1), float(m.param2)))
-                if m.get_type() != "PARAM_REQUEST_READ":
-                    continue
-                name = m.param_id.rstrip("\x00")
-                asked.append(name)
-                if name in dropped:
-                    dropped.discard(name)
-                    continue
-                kind = param_codec.INT32 if name in INT32_NAMES else param_codec.REAL32
-                value = param_codec.encode(params[name], kind)
-                sock.sendto(mavlink.MAVLink_param_value_message(name.encode(), value, kind, len(params), 0).pack(tx),
-                            peer)  # fmt: skip
+    def serve(data: bytes, reply: Callable[[bytes], None]) -> None:
+        for m in rx.parse_buffer(data) or []:
+            if m.get_type() == "COMMAND_LONG" and int(m.command) == 511:
+                intervals.append((int(m.param1), float(m.param2)))
+            if m.get_type() != "PARAM_REQUEST_READ":
+                continue
+            name = m.param_id.rstrip("\x00")
+            asked.append(name)
+            if name in dropped:
+                dropped.discard(name)
+                continue
+            kind = param_codec.INT32 if name in INT32_NAMES else param_codec.REAL32
+            value = param_codec.encode(params[name], kind)
+            reply(mavlink.MAVLink_param_value_message(name.encode(), value, kind, len(params), 0).pack(tx))
 
-    try:
-        end = time.monotonic() + 120.0  # it imports and loads its compiled kernels first
-        while not any("connecting on" in x for x in lines) and est.poll() is None and time.monotonic() < end:
-            time.sleep(0.05)
-        assert any("connecting on" in x for x in lines), lines
-        wall0 = time.monotonic()
-        for t, m in plan:
-            while time.monotonic() - wall0 < t / SPEED:
-                serve()
-                time.sleep(0.002)
-            sock.sendto(m.pack(tx), ("127.0.0.1", port))
-        time.sleep(0.5)
-        serve()
-    finally:
-        est.send_signal(signal.SIGTERM)
-        out = est.stdout.read() if est.wait(timeout=30) is not None else ""
-        reader.join(5.0)
-        err = "".join(lines)
-        sock.close()
-    assert est.returncode == 0, err
+    code, out, err = run_estimator([(t, m.pack(tx)) for t, m in plan], SPEED, serve, ("--request-rates", rates), 0.5)
+    assert code == 0, err
     if rates == "never":
         assert "the field stays the IMU message's (SCALED_IMU at 10 Hz, under 100, and rates may not be asked" in err
         assert not intervals and json.loads(out)["compass"]["field"] == "imu-message"
